@@ -1,0 +1,234 @@
+"""A scenario: everything about an experiment except the robots' individuality and the seed.
+
+Loaded from YAML (see ``config/``) with one-line errors naming the field. Presets give
+named starting points that a file can override.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..errors import ConfigError
+from . import behaviors as B
+from .arena import Arena
+from .constants import TICK_HZ
+from .kinematics import MotorConfig
+from .light import ConeField, LightField, SensorModel, field_from_dict, field_to_dict
+
+
+@dataclass(frozen=True)
+class StartSpec:
+    """Where robots start.
+
+    kind ``origin``: at (0, 0); ``uniform``: uniform in the square [-half_width, half_width]^2;
+    ``grid``: on a square lattice of ``spacing_m`` with ``columns`` per row, centred.
+    ``heading_rad``: a fixed start heading, or None for uniform on [-pi, pi).
+    ``shared``: True gives every robot of a run the same start pose (the paper's phototaxis
+    study distributes 100 start poses once, one per Monte Carlo run, for all robots).
+    """
+
+    kind: str = "origin"
+    half_width_m: float = 1.0
+    spacing_m: float = 0.06
+    columns: int = 7
+    heading_rad: float | None = 0.0
+    shared: bool = False
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One experiment's conditions.
+
+    Attributes
+    ----------
+    behavior : Straight | Phototaxis | RandomWalk | Blink
+    dt_s : float
+        Physics step; the controller runs once per step on the robot's own tick count.
+    duration_s : float
+    tick_hz : float
+        Nominal clock rate (31 Hz on a Kilobot, 10 in the authors' simulator).
+    coupling_per_s, neighbour_radius_m :
+        Kuramoto coupling strength k and neighbourhood radius (blink only).
+    cost_window_steps : int
+        The phototaxis cost is the mean distance to the light centre over this many final steps.
+    """
+
+    behavior: Any = field(default_factory=B.Straight)
+    dt_s: float = 0.1
+    duration_s: float = 200.0
+    tick_hz: float = TICK_HZ
+    motors: MotorConfig = field(default_factory=MotorConfig)
+    light: LightField = field(default_factory=ConeField)
+    sensor: SensorModel = field(default_factory=SensorModel)
+    arena: Arena = field(default_factory=Arena)
+    start: StartSpec = field(default_factory=StartSpec)
+    coupling_per_s: float = 0.0
+    neighbour_radius_m: float = 0.10
+    cost_window_steps: int = 100
+
+    @property
+    def n_steps(self) -> int:
+        return int(round(self.duration_s / self.dt_s))
+
+    def replace(self, **changes) -> "Scenario":
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        beh = {k: v for k, v in dataclasses.asdict(self.behavior).items() if k not in ("name", "needs_light")}
+        return {
+            "behavior": {"kind": self.behavior.name, **beh},
+            "dt_s": self.dt_s,
+            "duration_s": self.duration_s,
+            "tick_hz": self.tick_hz,
+            "motors": dataclasses.asdict(self.motors),
+            "light": field_to_dict(self.light),
+            "sensor": dataclasses.asdict(self.sensor),
+            "arena": dataclasses.asdict(self.arena),
+            "start": dataclasses.asdict(self.start),
+            "coupling_per_s": self.coupling_per_s,
+            "neighbour_radius_m": self.neighbour_radius_m,
+            "cost_window_steps": self.cost_window_steps,
+        }
+
+
+_NULLABLE = {"heading_rad"}
+
+
+def _sub(cls, data, where, source, converters=None):
+    """Build dataclass ``cls`` from a mapping, rejecting unknown keys and non-numbers."""
+    if data is None:
+        return cls()
+    if not isinstance(data, Mapping):
+        raise ConfigError(where.rstrip("."), f"expected a mapping, got {data!r}", "see config/scenario_example.yaml", source)
+    names = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    out = {}
+    for k, v in data.items():
+        if k not in names:
+            raise ConfigError(f"{where}{k}", "unknown key", f"use one of {', '.join(sorted(names))}", source)
+        default = names[k].default
+        if converters and k in converters:
+            out[k] = converters[k](v, f"{where}{k}")
+        elif isinstance(default, bool):
+            if not isinstance(v, bool):
+                raise ConfigError(f"{where}{k}", f"expected true or false, got {v!r}", "write true or false", source)
+            out[k] = v
+        elif isinstance(default, (int, float)) or default is None:
+            if v is None and (default is None or k in _NULLABLE):
+                out[k] = None
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+                raise ConfigError(f"{where}{k}", f"expected a number, got {v!r}", "write a plain number", source)
+            out[k] = int(v) if isinstance(default, int) and not isinstance(default, bool) else float(v)
+        else:
+            out[k] = v
+    try:
+        return cls(**out)
+    except TypeError as exc:  # pragma: no cover - guarded by the key check above
+        raise ConfigError(where.rstrip("."), str(exc), "check the keys", source) from None
+
+
+def _positive(d: Mapping, keys, where, source):
+    for k in keys:
+        if k in d and d[k] is not None and not (isinstance(d[k], (int, float)) and d[k] > 0):
+            raise ConfigError(f"{where}{k}", f"must be positive, got {d[k]!r}", "use a positive value", source)
+
+
+def scenario_from_dict(data: Mapping[str, Any], source: str = "") -> Scenario:
+    """Validated :class:`Scenario` from a parsed YAML mapping (``preset:`` first, then overrides)."""
+    if data is None:
+        data = {}
+    if not isinstance(data, Mapping):
+        raise ConfigError("scenario", "expected a mapping", "see config/scenario_example.yaml", source)
+    data = dict(data)
+    preset = data.pop("preset", None)
+    base: dict = {}
+    if preset is not None:
+        if preset not in PRESETS:
+            raise ConfigError("preset", f"unknown preset {preset!r}", f"use one of {', '.join(PRESETS)}", source)
+        base = _deep_merge({}, PRESETS[preset])
+    data = _deep_merge(base, data)
+    data.pop("traits", None)  # population defaults of a preset; read by the caller
+    known = {f.name for f in dataclasses.fields(Scenario)}
+    for k in data:
+        if k not in known:
+            raise ConfigError(str(k), "unknown scenario key", f"use one of {', '.join(sorted(known))}", source)
+    _positive(data, ("dt_s", "duration_s", "tick_hz", "neighbour_radius_m"), "", source)
+
+    beh = data.get("behavior", {"kind": "straight"})
+    if isinstance(beh, str):
+        beh = {"kind": beh}
+    if not isinstance(beh, Mapping) or beh.get("kind") not in B.BEHAVIORS:
+        kind = beh.get("kind") if isinstance(beh, Mapping) else beh
+        raise ConfigError("behavior.kind", f"unknown behaviour {kind!r}", f"use one of {', '.join(B.BEHAVIORS)}", source)
+    beh = dict(beh)
+    behavior = _sub(B.BEHAVIORS[beh.pop("kind")], beh, "behavior.", source)
+    if isinstance(behavior, B.Phototaxis) and not 0.0 <= behavior.p_right <= 1.0:
+        raise ConfigError("behavior.p_right", f"{behavior.p_right} is not a probability", "use a value in [0, 1]", source)
+
+    kw: dict[str, Any] = {"behavior": behavior}
+    for k in ("dt_s", "duration_s", "tick_hz", "coupling_per_s", "neighbour_radius_m", "cost_window_steps"):
+        if k in data:
+            v = data[k]
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ConfigError(k, f"expected a number, got {v!r}", "write a plain number", source)
+            kw[k] = int(v) if k == "cost_window_steps" else float(v)
+    kw["motors"] = _sub(MotorConfig, data.get("motors"), "motors.", source)
+    kw["sensor"] = _sub(SensorModel, data.get("sensor"), "sensor.", source)
+    kw["arena"] = _sub(Arena, data.get("arena"), "arena.", source)
+    kw["start"] = _sub(StartSpec, data.get("start"), "start.", source)
+    if kw["start"].kind not in ("origin", "uniform", "grid"):
+        raise ConfigError("start.kind", f"unknown start {kw['start'].kind!r}", "use origin, uniform or grid", source)
+    if "light" in data:
+        kw["light"] = field_from_dict(data["light"], source)
+    sc = Scenario(**kw)
+    if sc.n_steps < 1:
+        raise ConfigError("duration_s", "shorter than one step", "make duration_s at least dt_s", source)
+    return sc
+
+
+def preset_traits(preset: str | None) -> dict:
+    """Population defaults a preset implies (e.g. the authors' wheel noise)."""
+    return dict(PRESETS.get(preset or "", {}).get("traits", {}))
+
+
+def _deep_merge(a: dict, b: Mapping) -> dict:
+    out = dict(a)
+    for k, v in b.items():
+        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
+            out[k] = _deep_merge(dict(out[k]), v)
+        else:
+            out[k] = v
+    return out
+
+
+#: Named starting points. ``traits`` holds population defaults for robots the user does not
+#: describe (used by experiments and ``simulate``), not scenario fields.
+PRESETS: dict[str, dict] = {
+    # The paper's text: 200 s at dt = 0.1 s, 31 Hz Kilobot clock, light cone reaching 0 at
+    # the corners of a 4 m arena, start points uniform in [-1, 1]^2, Gaussian actuation noise.
+    "paper": {
+        "dt_s": 0.1,
+        "duration_s": 200.0,
+        "tick_hz": 31.0,
+        "light": {"kind": "cone", "radius_m": 0.7071 * 4.0, "peak": 1024.0},
+        "arena": {"width_m": 4.0, "height_m": 4.0, "walls": False},
+        "start": {"kind": "uniform", "half_width_m": 1.0, "heading_rad": None, "shared": True},
+        "traits": {"sigma_omega": 0.05, "sigma_v": 0.001},
+    },
+    # The authors' ARGoS code as shipped: 10 ticks/s, 2000 s, per-tick uniform wheel noise of
+    # +-0.5, phototaxis reference 2000 (robots climb the gradient and never 'arrive').
+    "argos-code": {
+        "dt_s": 0.1,
+        "duration_s": 2000.0,
+        "tick_hz": 10.0,
+        "light": {"kind": "cone", "radius_m": 0.7071 * 4.0, "peak": 1024.0},
+        "arena": {"width_m": 4.0, "height_m": 4.0, "walls": False},
+        "start": {"kind": "uniform", "half_width_m": 1.0, "heading_rad": None, "shared": True},
+        "behavior": {"kind": "phototaxis", "reference": 2000.0},
+        "traits": {"wheel_noise": 0.5},
+    },
+}

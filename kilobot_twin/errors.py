@@ -1,0 +1,17 @@
+"""One error type for bad input at the boundary (CLI, YAML, CSV, ROS parameters).
+
+Its message is a single line that names the field and says how to fix it; the CLI prints
+it without a traceback and exits with code 2.
+"""
+
+
+class ConfigError(ValueError):
+    """Bad user input: the message names the offending field and the fix."""
+
+    exit_code = 2
+
+    def __init__(self, field: str, problem: str, fix: str = "", source: str = ""):
+        where = f"{source}: " if source else ""
+        tail = f"; {fix}" if fix else ""
+        super().__init__(f"{where}{field}: {problem}{tail}")
+        self.field = field
