@@ -1,0 +1,89 @@
+"""Physics against theory: circle radius, heading diffusion, straight-line speed."""
+
+import numpy as np
+import pytest
+
+from kilobot_twin.core import kinematics, sim
+from kilobot_twin.core.behaviors import Straight
+from kilobot_twin.core.scenario import Scenario, StartSpec
+from kilobot_twin.core.traits import SwarmTraits
+
+
+def _fit_circle(x, y):
+    """Algebraic (Kasa) least-squares circle fit; returns centre and radius."""
+    A = np.column_stack([2 * x, 2 * y, np.ones_like(x)])
+    b = x**2 + y**2
+    cx, cy, c = np.linalg.lstsq(A, b, rcond=None)[0]
+    return cx, cy, np.sqrt(c + cx**2 + cy**2)
+
+
+@pytest.mark.parametrize("bias", [-0.04, -0.01, 0.005, 0.02, 0.04])
+def test_noiseless_biased_robot_draws_circle_of_analytic_radius(bias):
+    sc = Scenario(behavior=Straight(), dt_s=0.1, start=StartSpec(kind="origin", heading_rad=0.0))
+    radius = kinematics.circle_radius_m(bias)
+    v = sc.motors.forward_speed_m_s
+    period_s = 2 * np.pi * radius / v
+    sc = sc.replace(duration_s=period_s)
+    traits = SwarmTraits.uniform(1).with_values(heading_bias=bias)
+    res = sim.simulate(sc, traits, seed=1, record_every=10)
+    x, y = res.traj["x"][0, 0], res.traj["y"][0, 0]
+    cx, cy, r = _fit_circle(x, y)
+    assert abs(r - radius) / radius < 0.005
+    # Positive bias curves clockwise: starting along +x, the centre lies below (cy < 0).
+    assert np.sign(cy) == -np.sign(bias)
+    assert abs(cx) < 0.005 * radius
+
+
+def test_straight_speed_is_kilobot_constant():
+    sc = Scenario(behavior=Straight(), dt_s=0.1, duration_s=100.0)
+    res = sim.simulate(sc, SwarmTraits.uniform(1), seed=0)
+    # 48/255 of 6 cm/s for 100 s.
+    assert res.summary["path_m"][0, 0] == pytest.approx(0.06 * 48 / 255 * 100, rel=1e-9)
+    assert res.summary["x"][0, 0] == pytest.approx(0.06 * 48 / 255 * 100, rel=1e-9)
+
+
+def test_heading_variance_grows_linearly_with_analytic_slope():
+    """An unbiased robot with turn-rate noise sigma: Var(theta(t)) = sigma^2 t (Eq. 5).
+
+    With M independent robots the sample variance s^2 of a normal quantity has relative
+    standard error sqrt(2/(M-1)); we allow 4 of those (false-failure chance ~6e-5 per point).
+    """
+    sigma = 0.05
+    M = 4000
+    sc = Scenario(behavior=Straight(), dt_s=0.1, duration_s=100.0)
+    traits = SwarmTraits.uniform(M).with_values(sigma_omega=sigma)
+    res = sim.simulate(sc, traits, seed=7, record_every=100)
+    th = res.traj["theta"][0]  # (M, T)
+    var = th.var(axis=0, ddof=1)
+    t = res.t_s
+    tol = 4 * np.sqrt(2 / (M - 1))
+    for ti, vi in zip(t[1:], var[1:]):
+        assert abs(vi / (sigma**2 * ti) - 1) < tol
+    # And the mean stays at zero (no bias): |mean| < 4 standard errors.
+    assert np.all(np.abs(th[:, -1].mean()) < 4 * sigma * np.sqrt(t[-1] / M))
+
+
+def test_wheel_noise_heading_diffusion_matches_theory():
+    """Uniform wheel factors U~U(-a,a): omega noise (v0/L)(U_R-U_L) each step, so
+    Var(theta) grows by (v0 dt / L)^2 * 2 a^2/3 per step."""
+    a = 0.5
+    M = 4000
+    sc = Scenario(behavior=Straight(), dt_s=0.1, duration_s=50.0)
+    traits = SwarmTraits.uniform(M).with_values(wheel_noise=a)
+    res = sim.simulate(sc, traits, seed=3)
+    v0 = sc.motors.forward_speed_m_s
+    per_step = (v0 * sc.dt_s / sc.motors.wheel_separation_m) ** 2 * 2 * a**2 / 3
+    expected = per_step * sc.n_steps
+    var = res.summary["theta"][0].var(ddof=1)
+    assert abs(var / expected - 1) < 4 * np.sqrt(2 / (M - 1))
+
+
+def test_speed_factor_scales_path_and_keeps_radius():
+    sc = Scenario(behavior=Straight(), dt_s=0.1, duration_s=60.0)
+    traits = SwarmTraits.uniform(2).with_values(speed_factor=[1.0, 1.3], heading_bias=0.02)
+    res = sim.simulate(sc, traits, seed=0)
+    p = res.summary["path_m"][0]
+    assert p[1] / p[0] == pytest.approx(1.3, rel=1e-9)
+    # Same radius: the heading turned is proportional to the path length.
+    th = res.summary["theta"][0]
+    assert th[1] / th[0] == pytest.approx(1.3, rel=1e-9)
