@@ -171,6 +171,8 @@ class Phototaxis:
         new_deadline = deadline.copy()
 
         def set_(mask, m, mo, dur):
+            if not mask.any():
+                return
             np.copyto(new_mode, m, where=mask)
             if mo is not None:
                 np.copyto(new_motion, mo, where=mask)
@@ -185,8 +187,9 @@ class Phototaxis:
             right = rng.uniform(keys, step) < self.p_right
             set_(start_turn, P_TURN, np.where(right, TURN_RIGHT, TURN_LEFT).astype(np.int8), t["turn_ms"])
         np.copyto(last, reading, where=decide)
-        np.copyto(new_mode, P_ARRIVED, where=arrived)
-        np.copyto(new_motion, STOP, where=arrived)
+        if arrived.any():
+            np.copyto(new_mode, P_ARRIVED, where=arrived)
+            np.copyto(new_motion, STOP, where=arrived)
 
         st["mode"], st["motion"], st["deadline"] = new_mode, new_motion, new_deadline
         return new_motion

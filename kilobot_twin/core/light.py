@@ -198,6 +198,7 @@ def sense(intensity, gain, offset, noise_sd, keys, counter: int, model: SensorMo
     clipped to [0, ceiling] and truncated like the controller's integer average.
     """
     y = sensor_response(intensity, gain, offset, model)
-    z, _ = rng.normal_pair(keys, counter)
-    y = y + z * (noise_sd / np.sqrt(model.samples))
+    if np.any(noise_sd > 0):
+        z, _ = rng.normal_pair(keys, counter)
+        y = y + z * (noise_sd / np.sqrt(model.samples))
     return np.floor(np.clip(y, 0.0, model.ceiling))

@@ -1,0 +1,59 @@
+"""Summaries of experiment arrays (pure NumPy): acceptable ranges, minima, comparisons."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def mean_cost_by_robot(cost):
+    """(G, R, N) -> (G, N) mean over Monte Carlo runs."""
+    return np.asarray(cost).mean(axis=-2)
+
+
+def acceptable_range(bias, mean_cost, delta_acc):
+    """R_acc: the bias interval [lo, hi] around the best robot where the mean cost stays below
+    ``delta_acc`` (the contiguous run of acceptable robots containing the minimum), and its width.
+
+    Returns (lo, hi, width); (nan, nan, 0) if no robot is acceptable.
+    """
+    order = np.argsort(bias)
+    b, c = np.asarray(bias)[order], np.asarray(mean_cost)[order]
+    ok = c < delta_acc
+    if not ok.any():
+        return float("nan"), float("nan"), 0.0
+    best = int(np.argmin(c))
+    lo = best
+    while lo > 0 and ok[lo - 1]:
+        lo -= 1
+    hi = best
+    while hi < len(b) - 1 and ok[hi + 1]:
+        hi += 1
+    return float(b[lo]), float(b[hi]), float(b[hi] - b[lo])
+
+
+def n_acceptable(cost, delta_acc):
+    """N_acc: number of (run, robot) experiments with cost below ``delta_acc``; cost (..., R, N)."""
+    return int((np.asarray(cost) < delta_acc).sum())
+
+
+def phototaxis_summary(bias, cost, p_rights, delta_acc=0.75) -> dict:
+    """Headline numbers of a phototaxis campaign, per P_R."""
+    bias = np.asarray(bias)
+    mc = mean_cost_by_robot(cost)
+    zero = int(np.argmin(np.abs(bias)))
+    out = {}
+    for g, p in enumerate(p_rights):
+        m = mc[g]
+        left, right = bias < 0, bias > 0
+        lo, hi, width = acceptable_range(bias, m, delta_acc)
+        best = int(np.argmin(m))
+        out[f"P_R={p}"] = {
+            "cost_at_zero_bias_m": round(float(m[zero]), 4),
+            "best_bias": round(float(bias[best]), 4),
+            "best_cost_m": round(float(m[best]), 4),
+            "mean_cost_left_biased_m": round(float(m[left].mean()), 4) if left.any() else None,
+            "mean_cost_right_biased_m": round(float(m[right].mean()), 4) if right.any() else None,
+            "R_acc": [round(lo, 4), round(hi, 4)],
+            "N_acc": n_acceptable(cost[g], delta_acc),
+        }
+    return out

@@ -1,0 +1,139 @@
+"""The ``kilobot-twin`` command. Each verb is a plain function; ``main`` only parses and reports.
+
+Bad input ends with one line on stderr (``kilobot-twin: error: FIELD: problem; fix``) and
+exit code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from . import __version__
+from .errors import ConfigError
+
+
+# --- verbs as plain functions ------------------------------------------------------------
+
+def simulate(config: str, out: str | None = None, traits: str | None = None, seed: int | None = None,
+             runs: int | None = None, robots: int | None = None, workers: int | None = None,
+             parquet: bool = False, progress: bool = True) -> dict:
+    """Run one configuration file (see :mod:`kilobot_twin.config`) and write its results."""
+    from .batch import run_campaign
+    from .config import load_config
+
+    cfg = load_config(config, traits_path=traits, seed=seed, runs=runs, n_robots=robots)
+    out = out or str(Path("results") / (Path(config).stem + ".npz"))
+    result = run_campaign(cfg.campaign(), out=out, workers=workers, progress=progress, parquet=parquet,
+                          desc=Path(config).stem)
+    result["path"] = out
+    return result
+
+
+def draw_traits(population: str, out: str, seed: int = 0, robots: int | None = None) -> Path:
+    """Draw a swarm from a population file (``population: {...}``) and save it as robots."""
+    from .core.traits import load_swarm, save_swarm
+
+    sw = load_swarm(population, seed=seed, n=robots)
+    save_swarm(sw, out)
+    return Path(out)
+
+
+def check_traits(path: str) -> int:
+    """Validate a traits file; returns the number of robots."""
+    from .core.traits import load_swarm
+
+    return len(load_swarm(path))
+
+
+def demo(out: str = "out/demo", quick: bool = False, workers: int | None = None, progress: bool = True) -> dict:
+    """The main job: a phototaxis campaign on embedded defaults, with a plot and a summary."""
+    from .demo import run_demo
+
+    return run_demo(out, quick=quick, workers=workers, progress=progress)
+
+
+# --- argument parsing -----------------------------------------------------------------------
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error (no usage dump), exit code 2."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="kilobot-twin", description="A digital twin of a Kilobot swarm of individuals.")
+    p.add_argument("--version", action="version", version=f"kilobot-twin {__version__}")
+    sub = p.add_subparsers(dest="verb", required=True, metavar="VERB", parser_class=_Parser)
+
+    s = sub.add_parser("simulate", help="run one configuration (scenario + swarm + Monte Carlo plan) from YAML")
+    s.add_argument("config", help="run configuration YAML (see config/*.yaml)")
+    s.add_argument("--out", help="results file (.npz); default results/<config>.npz")
+    s.add_argument("--traits", help="traits YAML overriding the config's swarm")
+    s.add_argument("--seed", type=int)
+    s.add_argument("--runs", type=_positive_int)
+    s.add_argument("--robots", type=_positive_int, help="number of robots (population configs)")
+    s.add_argument("--workers", type=_positive_int, help="processes (default: all cores)")
+    s.add_argument("--parquet", action="store_true", help="also write a long-format .parquet table")
+    s.add_argument("--no-progress", action="store_true")
+
+    d = sub.add_parser("demo", help="the main job: a phototaxis campaign with a plot and a summary")
+    d.add_argument("--out", default="out/demo")
+    d.add_argument("--quick", action="store_true", help="fewer runs (seconds instead of a minute)")
+    d.add_argument("--workers", type=_positive_int)
+    d.add_argument("--no-progress", action="store_true")
+
+    t = sub.add_parser("traits", help="draw or check robot traits files")
+    tsub = t.add_subparsers(dest="traits_verb", required=True, metavar="ACTION", parser_class=_Parser)
+    td = tsub.add_parser("draw", help="draw a swarm from a population file and save it per robot")
+    td.add_argument("population")
+    td.add_argument("--out", required=True)
+    td.add_argument("--seed", type=int, default=0)
+    td.add_argument("--robots", type=_positive_int)
+    tc = tsub.add_parser("check", help="validate a traits file")
+    tc.add_argument("path")
+    return p
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
+    return v
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        if args.verb == "simulate":
+            res = simulate(args.config, args.out, args.traits, args.seed, args.runs, args.robots, args.workers,
+                           args.parquet, not args.no_progress)
+            meta = res["meta"]
+            print(f"wrote {res['path']}: {len(res['points'])} grid point(s) x {meta['runs']} run(s) x "
+                  f"{len(res['swarm'])} robot(s), {meta['robot_steps'] / meta['elapsed_s'] / 1e6:.1f} M robot-steps/s")
+        elif args.verb == "demo":
+            res = demo(args.out, args.quick, args.workers, not args.no_progress)
+            print(json.dumps(res["summary"], indent=2))
+            print(f"plot: {res['plot']}\nsummary: {res['summary_path']}")
+        elif args.verb == "traits":
+            if args.traits_verb == "draw":
+                print(f"wrote {draw_traits(args.population, args.out, args.seed, args.robots)}")
+            else:
+                print(f"{args.path}: {check_traits(args.path)} robot(s), valid")
+        return 0
+    except ConfigError as exc:
+        print(f"kilobot-twin: error: {exc}", file=sys.stderr)
+        return ConfigError.exit_code
+    except KeyboardInterrupt:
+        print("kilobot-twin: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

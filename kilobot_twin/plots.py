@@ -1,0 +1,58 @@
+"""Drawing, separate from computing: every function here reads result arrays and writes a PNG.
+
+Colours follow the paper: left-biased robots (negative bias) red, right-biased blue.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def bias_cmap():
+    """The paper's red (left, negative) -> purple -> blue (right, positive) map."""
+    from matplotlib.colors import LinearSegmentedColormap
+
+    return LinearSegmentedColormap.from_list("bias", [(1.0, 0.0, 0.0), (0.5, 0.0, 0.5), (0.0, 0.35, 1.0)])
+
+
+def cost_vs_bias(bias, cost, labels, path, delta_acc=0.75, title="Phototaxis cost vs heading bias"):
+    """Fig. 5 style: one panel per grid point; dots per (run, robot), black mean line.
+
+    Parameters
+    ----------
+    bias : (N,) heading bias per robot
+    cost : (G, R, N) cost per grid point, run, robot (m)
+    labels : list of G panel titles
+    """
+    plt = _plt()
+    G = cost.shape[0]
+    fig, axes = plt.subplots(1, G, figsize=(4.2 * G, 3.6), sharey=True, squeeze=False)
+    order = np.argsort(bias)
+    lim = np.max(np.abs(bias)) or 1.0
+    for g, ax in enumerate(axes[0]):
+        R = cost.shape[1]
+        xs = np.tile(bias, R)
+        ax.scatter(xs, cost[g].reshape(-1), c=xs, cmap=bias_cmap(), vmin=-lim, vmax=lim, s=6, alpha=0.35, lw=0)
+        ax.plot(bias[order], cost[g].mean(axis=0)[order], color="k", lw=2, label="mean")
+        ax.axhline(delta_acc, color="tab:green", lw=1.5, ls="--", label=f"delta_acc = {delta_acc} m")
+        ax.set_title(labels[g])
+        ax.set_xlabel("heading bias (+ = right)")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("cost: mean distance to light (m)")
+    axes[0][0].legend(loc="upper center", fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)

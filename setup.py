@@ -1,0 +1,28 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "kilobot_twin"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    description="A digital twin of a Kilobot swarm of individuals (ROS 2 Jazzy, NumPy, MCAP, Rerun)",
+    license="MIT",
+    python_requires=">=3.10",
+    packages=find_packages(exclude=["tests", "tests.*", "benchmarks"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/msg_schemas", glob("msg_schemas/*.msg")),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/launch", glob("launch/*.py")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    entry_points={
+        "console_scripts": [
+            "kilobot-twin = kilobot_twin.cli:main",
+        ],
+    },
+)
