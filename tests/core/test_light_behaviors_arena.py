@@ -1,0 +1,165 @@
+"""Light fields, the sensor, behaviours and the arena against their definitions."""
+
+import numpy as np
+import pytest
+
+from kilobot_twin.core import light, sim
+from kilobot_twin.core.arena import Arena
+from kilobot_twin.core.behaviors import Phototaxis, RandomWalk, Straight, ms_to_ticks
+from kilobot_twin.core.constants import FORWARD, STOP, TURN_LEFT, TURN_RIGHT
+from kilobot_twin.core.scenario import Scenario, StartSpec, scenario_from_dict
+from kilobot_twin.core.traits import SwarmTraits
+from kilobot_twin.errors import ConfigError
+
+
+def test_cone_field_matches_authors_formula():
+    f = light.ConeField(radius_m=0.7071 * 4)
+    r = np.array([0.0, 1.0, 2.0, 2.8284, 3.5])
+    expected = np.clip(1024 * (1 - r / (0.7071 * 4)), 0, 1024)
+    np.testing.assert_allclose(f.intensity(r, 0 * r), expected)
+    np.testing.assert_allclose(f.intensity(0 * r, r), expected)  # radially symmetric
+
+
+def test_gaussian_and_sweep_fields():
+    g = light.GaussianField(sigma_m=0.5)
+    assert g.intensity(0.5, 0.0) == pytest.approx(1024 * np.exp(-0.5))
+    s = light.UniformSweepField(period_s=10, ramps=4)
+    t = np.array([0, 2.5, 9.99, 10, 39.99, 40, 50])
+    np.testing.assert_allclose(s.v_value(t), [0, 0.25, 0.999, 0, 0.999, 0, 0], atol=1e-9)
+    assert s.intensity(np.zeros(3), np.zeros(3), 5.0).tolist() == [512.0] * 3
+
+
+def test_image_field_interpolates_and_orients_like_a_picture():
+    img = np.zeros((2, 2))
+    img[0, 1] = 1.0  # top-right pixel bright
+    f = light.ImageField(img, extent_m=(-1, 1, -1, 1), peak=100.0)
+    assert f.intensity(0.5, 0.5) == pytest.approx(100.0)   # top right
+    assert f.intensity(-0.5, -0.5) == pytest.approx(0.0)   # bottom left
+    assert f.intensity(0.0, 0.5) == pytest.approx(50.0)    # halfway along the top row
+    assert f.intensity(2.0, 0.0) == 0.0                    # outside
+
+
+def test_sensor_gain_offset_saturation_and_noise():
+    I = np.array([0.0, 100.0, 400.0, 1000.0])
+    y = light.sensor_response(I, gain=2.0, offset=5.0)
+    np.testing.assert_allclose(y, [5, 205, 805, 1023])
+    soft = light.sensor_response(I, 2.0, 5.0, light.SensorModel(knee=6))
+    assert np.all(np.diff(soft) > 0) and soft[-1] < 1023 and soft[1] == pytest.approx(205, rel=0.01)
+    # Averaging 10 samples: reading sd = noise / sqrt(10).
+    from kilobot_twin.core import rng
+
+    keys = rng.robot_keys(0, np.arange(20000), [0], rng.SENSOR)
+    r = light.sense(np.full((20000, 1), 300.0), 1.0, 0.0, 30.0, keys, 1)
+    assert abs(r.std() / (30 / np.sqrt(10)) - 1) < 4 * np.sqrt(1 / (2 * 20000)) + 0.01  # + floor()
+    assert np.all(r == np.floor(r))
+
+
+def test_bad_light_config():
+    with pytest.raises(ConfigError, match="light.kind"):
+        scenario_from_dict({"light": {"kind": "laser"}})
+    with pytest.raises(ConfigError, match="light.sigma_m"):
+        scenario_from_dict({"light": {"kind": "gaussian", "sigma_m": -1}})
+
+
+def test_ms_to_ticks_quantises_like_kilo_ticks():
+    assert ms_to_ticks(2100, 10) == 21
+    assert ms_to_ticks(50, 10) == 0  # the authors' delay(50) does nothing at 10 ticks/s
+    assert ms_to_ticks(200, 31) == 6
+
+
+def _photo(p_right=0.5, radius_m=0.7071, **kw):
+    return scenario_from_dict({
+        "behavior": {"kind": "phototaxis", "p_right": p_right, **kw}, "dt_s": 0.1, "duration_s": 600,
+        "light": {"kind": "cone", "radius_m": radius_m},
+        "start": {"kind": "uniform", "half_width_m": 0.4, "heading_rad": None},
+    })
+
+
+def test_phototaxis_climbs_the_gradient():
+    """On the authors' cone (0 at 0.707 m) robots end nearer the light; with a flat field
+    (nothing to climb) the same controller drifts away instead."""
+    res = sim.simulate(_photo(reference=2000.0), SwarmTraits.uniform(40), seed=1, record_every=10)
+    d = np.hypot(res.traj["x"][0], res.traj["y"][0])  # (robots, T)
+    assert d[:, -100:].mean() < 0.7 * d[:, 0].mean()
+    assert np.median(d[:, -100:].mean(axis=1)) < 0.25
+    flat = _photo(reference=2000.0).replace(light=light.GaussianField(sigma_m=1000.0))
+    res = sim.simulate(flat, SwarmTraits.uniform(40), seed=1, record_every=10)
+    d = np.hypot(res.traj["x"][0], res.traj["y"][0])
+    assert d[:, -100:].mean() > 2 * d[:, 0].mean()
+
+
+@pytest.mark.parametrize("reference, stops", [(1023.0, True), (1021.0, True), (1030.0, False)])
+def test_phototaxis_stops_within_two_counts_of_reference(reference, stops):
+    """A near-flat field reads 1023 everywhere: the robot stops iff |1023 - reference| <= 2."""
+    sc = _photo(reference=reference).replace(light=light.GaussianField(sigma_m=1000.0))
+    res = sim.simulate(sc, SwarmTraits.uniform(3), seed=1, record_every=1)
+    assert np.all(res.traj["reading"][0] == 1023)
+    moving = res.traj["motion"][0, :, 1:] != STOP
+    assert (not moving.any()) if stops else moving.all(axis=0).mean() > 0.5
+
+
+@pytest.mark.parametrize("p_right, allowed", [(1.0, {TURN_RIGHT}), (0.0, {TURN_LEFT})])
+def test_phototaxis_turn_direction_follows_p_right(p_right, allowed):
+    res = sim.simulate(_photo(p_right, reference=2000.0), SwarmTraits.uniform(10), seed=2, record_every=1)
+    turns = set(np.unique(res.traj["motion"])) & {TURN_LEFT, TURN_RIGHT}
+    assert turns == allowed
+
+
+def test_phototaxis_turn_fraction_matches_p_right():
+    res = sim.simulate(_photo(0.25, reference=2000.0), SwarmTraits.uniform(60), seed=3, record_every=1)
+    m = res.traj["motion"][0]
+    starts = (m[:, 1:] != m[:, :-1]) & np.isin(m[:, 1:], [TURN_LEFT, TURN_RIGHT])
+    right = (starts & (m[:, 1:] == TURN_RIGHT)).sum()
+    n = starts.sum()
+    assert n > 200
+    assert abs(right / n - 0.25) < 4 * np.sqrt(0.25 * 0.75 / n)
+
+
+def test_phototaxis_turn_lasts_21_ticks_at_10hz():
+    sc = _photo(1.0, reference=2000.0).replace(tick_hz=10.0)
+    res = sim.simulate(sc, SwarmTraits.uniform(5), seed=4, record_every=1)
+    m = res.traj["motion"][0, 0]
+    runs, count = [], 0
+    for v in m:
+        if v == TURN_RIGHT:
+            count += 1
+        elif count:
+            runs.append(count)
+            count = 0
+    assert runs and set(runs) == {21}
+
+
+def test_random_walk_alternates_and_walls_confine():
+    arena = Arena(width_m=0.5, height_m=0.5, walls=True, coverage_cell_m=0.02)
+    sc = Scenario(behavior=RandomWalk(), dt_s=0.1, duration_s=600, arena=arena,
+                  start=StartSpec(kind="uniform", half_width_m=0.2, heading_rad=None))
+    res = sim.simulate(sc, SwarmTraits.uniform(10), seed=5, record_every=1)
+    lim = 0.25 - 0.0165 + 1e-12
+    assert np.abs(res.traj["x"]).max() <= lim and np.abs(res.traj["y"]).max() <= lim
+    assert {FORWARD, TURN_LEFT, TURN_RIGHT} <= set(np.unique(res.traj["motion"]))
+    assert np.all(res.summary["coverage_m2"] > 0) and np.all(res.summary["coverage_m2"] <= 0.25)
+
+
+def test_coverage_of_a_straight_line_counts_cells_crossed():
+    arena = Arena(width_m=4, height_m=4, walls=True, coverage_cell_m=0.02)
+    sc = Scenario(behavior=Straight(), dt_s=0.1, duration_s=100, arena=arena,
+                  start=StartSpec(kind="origin", heading_rad=0.0))
+    res = sim.simulate(sc, SwarmTraits.uniform(1), seed=0)
+    length = sc.motors.forward_speed_m_s * 100
+    cells = res.summary["coverage_m2"][0, 0] / 0.02**2
+    assert cells == pytest.approx(np.floor(length / 0.02) + 1, abs=1)
+
+
+def test_campaign_streams_trajectories(tmp_path):
+    from kilobot_twin.batch import Campaign, run_campaign
+
+    sc = Scenario(behavior=Straight(), dt_s=0.1, duration_s=10)
+    c = Campaign(sc, SwarmTraits.uniform(3).with_values(heading_bias=[-0.02, 0, 0.02]), seed=1, runs=5, record_every=10)
+    res = run_campaign(c, out=tmp_path / "r.npz", workers=2, progress=False)
+    shards = sorted((tmp_path / "r_traj").glob("*.npz"))
+    assert shards
+    runs = np.concatenate([np.load(s)["runs"] for s in shards])
+    assert sorted(runs.tolist()) == list(range(5))
+    with np.load(shards[0]) as z:
+        assert z["x"].shape[1:] == (3, 11)
+        np.testing.assert_array_equal(z["x"][:, :, -1], res["summary"]["x"][0, z["runs"]])
