@@ -55,23 +55,24 @@ class Blink:
 
 @dataclass(frozen=True)
 class RandomWalk:
-    """Straight for a random duration, then turn (left or right, 50/50) for a random duration.
+    """The Kilobot library's random walk, as the authors ran it.
 
-    Durations are uniform on [min, max] seconds of the robot's own clock. The defaults (2-8 s
-    forward, 0.5-3 s turning, i.e. up to about 125 degrees) are ours: the paper does not give
-    the random-walk timing.
+    At every decision the robot draws: forward with probability ``p_forward`` for a duration
+    uniform on [forward_min_s, forward_max_s], otherwise a turn (left or right, 50/50) for a
+    duration uniform on [turn_min_s, turn_max_s]. The defaults are the authors' random_walk.c:
+    forward 2 s (p = 0.5), turn 1 s (about 41 degrees), each decision independent.
     """
 
+    p_forward: float = 0.5
     forward_min_s: float = 2.0
-    forward_max_s: float = 8.0
-    turn_min_s: float = 0.5
-    turn_max_s: float = 3.0
+    forward_max_s: float = 2.0
+    turn_min_s: float = 1.0
+    turn_max_s: float = 1.0
     name: str = field(default="random_walk", init=False)
     needs_light: bool = field(default=False, init=False)
 
     def init_state(self, shape, reading0, tick_hz):
         return {
-            "turning": np.zeros(shape, dtype=bool),
             "deadline": np.zeros(shape, dtype=np.int64),
             "motion": np.full(shape, FORWARD, dtype=np.int8),
         }
@@ -79,16 +80,16 @@ class RandomWalk:
     def decide(self, st, now, reading, keys, step, tick_hz):
         due = now >= st["deadline"]
         if np.any(due):
-            u_dur = rng.uniform(keys, 2 * step)
-            u_dir = rng.uniform(keys, 2 * step + 1)
-            start_turn = due & ~st["turning"]
+            u_kind = rng.uniform(keys, 3 * step)
+            u_dur = rng.uniform(keys, 3 * step + 1)
+            u_dir = rng.uniform(keys, 3 * step + 2)
+            forward = u_kind < self.p_forward
             fwd_s = self.forward_min_s + (self.forward_max_s - self.forward_min_s) * u_dur
             turn_s = self.turn_min_s + (self.turn_max_s - self.turn_min_s) * u_dur
-            dur_ticks = np.floor(np.where(start_turn, turn_s, fwd_s) * tick_hz).astype(np.int64)
-            new_motion = np.where(start_turn, np.where(u_dir < 0.5, TURN_LEFT, TURN_RIGHT), FORWARD)
+            dur_ticks = np.floor(np.where(forward, fwd_s, turn_s) * tick_hz + 1e-9).astype(np.int64)
+            new_motion = np.where(forward, FORWARD, np.where(u_dir < 0.5, TURN_LEFT, TURN_RIGHT))
             st["motion"] = np.where(due, new_motion, st["motion"]).astype(np.int8)
             st["deadline"] = np.where(due, now + np.maximum(dur_ticks, 1), st["deadline"])
-            st["turning"] = np.where(due, start_turn, st["turning"])
         return st["motion"]
 
 

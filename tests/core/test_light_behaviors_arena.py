@@ -163,3 +163,22 @@ def test_campaign_streams_trajectories(tmp_path):
     with np.load(shards[0]) as z:
         assert z["x"].shape[1:] == (3, 11)
         np.testing.assert_array_equal(z["x"][:, :, -1], res["summary"]["x"][0, z["runs"]])
+
+
+def test_random_walk_choice_probabilities_and_durations():
+    """Authors' walk: forward 2 s w.p. 0.5, else turn 1 s left/right 50/50 (at 10 ticks/s)."""
+    sc = Scenario(behavior=RandomWalk(), dt_s=0.1, duration_s=2000, tick_hz=10.0)
+    res = sim.simulate(sc, SwarmTraits.uniform(20), seed=8, record_every=1)
+    m = res.traj["motion"][0, :, 1:]  # column 0 is the state before the first step
+    counts = {FORWARD: 0, TURN_LEFT: 0, TURN_RIGHT: 0}
+    for row in m:
+        segments = np.split(row, np.flatnonzero(np.diff(row)) + 1)
+        for j, seg in enumerate(segments):
+            per = 20 if seg[0] == FORWARD else 10  # steps per decision
+            n, rem = divmod(len(seg), per)
+            # A run of one motion is a whole number of decisions (the last may be cut short).
+            assert rem == 0 or j == len(segments) - 1
+            counts[int(seg[0])] += n
+    total = sum(counts.values())
+    for k, p in ((FORWARD, 0.5), (TURN_LEFT, 0.25), (TURN_RIGHT, 0.25)):
+        assert abs(counts[k] / total - p) < 4 * np.sqrt(p * (1 - p) / total)
