@@ -57,3 +57,47 @@ def phototaxis_summary(bias, cost, p_rights, delta_acc=0.75) -> dict:
             "N_acc": n_acceptable(cost[g], delta_acc),
         }
     return out
+
+
+def turn_rate_from_track(t_s, x, y, min_step_m: float = 1e-4):
+    """Turn rate (rad/s, counter-clockwise positive) and speed (m/s) of tracked positions.
+
+    The heading of each displacement between samples is unwrapped and a line is fitted to it
+    against time (least squares). Works on the last axis; NaN positions (tracking gaps) and
+    displacements shorter than ``min_step_m`` (standing still, tracker jitter) are skipped.
+
+    Parameters
+    ----------
+    t_s : (T,) or (..., T) sample times
+    x, y : (..., T) positions in m
+
+    Returns
+    -------
+    omega_rad_s, speed_m_s : arrays of shape (...)
+    """
+    t = np.broadcast_to(np.asarray(t_s, dtype=np.float64), np.shape(x))
+    x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    flat_t, flat_x, flat_y = (a.reshape(-1, a.shape[-1]) for a in (t, x, y))
+    omega = np.full(flat_x.shape[0], np.nan)
+    speed = np.full(flat_x.shape[0], np.nan)
+    for i in range(flat_x.shape[0]):
+        ok = np.isfinite(flat_x[i]) & np.isfinite(flat_y[i])
+        tt, xx, yy = flat_t[i, ok], flat_x[i, ok], flat_y[i, ok]
+        if len(tt) < 3:
+            continue
+        dx, dy, dt = np.diff(xx), np.diff(yy), np.diff(tt)
+        step = np.hypot(dx, dy)
+        moving = step > min_step_m
+        if moving.sum() < 2:
+            continue
+        heading = np.unwrap(np.arctan2(dy[moving], dx[moving]))
+        tm = 0.5 * (tt[1:] + tt[:-1])[moving]
+        omega[i] = np.polyfit(tm, heading, 1)[0]
+        speed[i] = step.sum() / dt.sum()
+    return omega.reshape(np.shape(x)[:-1]), speed.reshape(np.shape(x)[:-1])
+
+
+def heading_bias_from_track(t_s, x, y, wheel_separation_m: float = 0.025):
+    """Dimensionless heading bias (+ = clockwise) from tracked positions: ``b = -omega L / v``."""
+    omega, speed = turn_rate_from_track(t_s, x, y)
+    return -omega * wheel_separation_m / speed
