@@ -29,6 +29,8 @@ class StartSpec:
     ``heading_rad``: a fixed start heading, or None for uniform on [-pi, pi).
     ``shared``: True gives every robot of a run the same start pose (the paper's phototaxis
     study distributes 100 start poses once, one per Monte Carlo run, for all robots).
+    ``random_phase``: start each robot's clock at a random phase of the blink period instead
+    of all at tick 0 (the paper's robots were started in sync by a broadcast).
     """
 
     kind: str = "origin"
@@ -37,6 +39,7 @@ class StartSpec:
     columns: int = 7
     heading_rad: float | None = 0.0
     shared: bool = False
+    random_phase: bool = False
 
 
 @dataclass(frozen=True)
@@ -196,9 +199,12 @@ def preset_traits(preset: str | None) -> dict:
 
 
 def _deep_merge(a: dict, b: Mapping) -> dict:
+    """Merge b over a, recursively; a mapping with a different ``kind`` replaces, not merges."""
     out = dict(a)
     for k, v in b.items():
-        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
+        if isinstance(v, str) and k == "behavior" and isinstance(out.get(k), Mapping):
+            v = {"kind": v}
+        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping) and v.get("kind", out[k].get("kind")) == out[k].get("kind"):
             out[k] = _deep_merge(dict(out[k]), v)
         else:
             out[k] = v

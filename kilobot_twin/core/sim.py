@@ -30,6 +30,7 @@ class SimState:
     theta: np.ndarray
     ticks: np.ndarray
     bias: np.ndarray  # effective heading bias this trial (trait + drift * trial + trial jitter)
+    clock: np.ndarray  # effective clock rate this trial
     motion: np.ndarray
     led: np.ndarray
     reading: np.ndarray
@@ -102,8 +103,9 @@ def init_state(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tr
     keys = {p: rng.robot_keys(seed, runs, ids, p) for p in (rng.MOTION, rng.WHEEL, rng.SENSOR, rng.BEHAVIOR, rng.TRIAL)}
     tr = {k: v.reshape(1, N) for k, v in traits.values.items()}
 
-    jitter, _ = rng.normal_pair(keys[rng.TRIAL], 0)
+    jitter, clock_jitter = rng.normal_pair(keys[rng.TRIAL], 0)
     bias = tr["heading_bias"] + tr["bias_drift"] * trials.reshape(R, 1) + tr["bias_trial_sd"] * jitter
+    clock = tr["clock_rate"] * np.maximum(1.0 + tr["clock_trial_sd"] * clock_jitter, 0.05)
 
     if poses is None:
         x, y, theta = start_poses(scenario, seed, runs, ids)
@@ -111,7 +113,7 @@ def init_state(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tr
         x, y, theta = (np.broadcast_to(np.asarray(p, dtype=np.float64), (R, N)).copy() for p in poses)
     x, y = scenario.arena.confine(x, y)
     st = SimState(
-        step=0, x=x, y=y, theta=theta, ticks=np.zeros((R, N)), bias=bias,
+        step=0, x=x, y=y, theta=theta, ticks=np.zeros((R, N)), bias=bias, clock=clock,
         motion=np.zeros((R, N), dtype=np.int8), led=np.full((R, N), LED_OFF, dtype=np.int8),
         reading=np.zeros((R, N)), behavior={}, keys=keys, runs=runs, robot_ids=ids, trials=trials, traits=tr,
     )
@@ -119,6 +121,9 @@ def init_state(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tr
     st.reading = reading0
     st.behavior = scenario.behavior.init_state((R, N), reading0, scenario.tick_hz)
     if isinstance(scenario.behavior, Blink):
+        if scenario.start.random_phase:
+            period = 2 * scenario.behavior.half_period_ticks
+            st.ticks = period * rng.uniform(keys[rng.TRIAL], 1)
         st.led = clocks.blink_led(st.ticks, scenario.behavior.half_period_ticks)
         if scenario.coupling_per_s > 0:
             st.adjacency = clocks.neighbours(x, y, scenario.neighbour_radius_m)
@@ -141,7 +146,7 @@ def step(st: SimState, scenario: Scenario, table: np.ndarray | None = None) -> S
     k = st.step
     dt = scenario.dt_s
     tr = st.traits
-    st.ticks = clocks.advance(st.ticks, tr["clock_rate"], scenario.tick_hz, dt)
+    st.ticks = clocks.advance(st.ticks, st.clock, scenario.tick_hz, dt)
     beh = scenario.behavior
     if isinstance(beh, Blink):
         if st.adjacency is not None:

@@ -56,6 +56,9 @@ class RobotTraits:
         Standard deviation of one light sample, ADC counts (the controller averages 10).
     clock_rate : float
         Relative rate of the robot's clock: it ticks at ``31 Hz * clock_rate`` (paper Fig. 9).
+    clock_trial_sd : float
+        Relative trial-to-trial spread of the clock rate (battery, temperature): each trial
+        runs at ``clock_rate * (1 + clock_trial_sd * z)``, z ~ N(0, 1) fixed for the trial.
     """
 
     heading_bias: float = 0.0
@@ -69,6 +72,7 @@ class RobotTraits:
     sensor_offset: float = 0.0
     sensor_noise: float = 0.0
     clock_rate: float = 1.0
+    clock_trial_sd: float = 0.0
 
     def __post_init__(self):
         for f in fields(self):
@@ -94,6 +98,7 @@ _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
     "sensor_offset": (-1023.0, 1023.0, True, True, "use an offset in ADC counts within [-1023, 1023]"),
     "sensor_noise": (0.0, 1023.0, True, True, "use a non-negative standard deviation in ADC counts"),
     "clock_rate": (0.0, 10.0, False, True, "use a positive relative rate, 1 for a nominal clock"),
+    "clock_trial_sd": (0.0, 0.2, True, True, "use a relative standard deviation in [0, 0.2]"),
 }
 
 

@@ -182,3 +182,11 @@ def test_random_walk_choice_probabilities_and_durations():
     total = sum(counts.values())
     for k, p in ((FORWARD, 0.5), (TURN_LEFT, 0.25), (TURN_RIGHT, 0.25)):
         assert abs(counts[k] / total - p) < 4 * np.sqrt(p * (1 - p) / total)
+
+
+def test_preset_override_with_another_kind_replaces_instead_of_merging():
+    sc = scenario_from_dict({"preset": "argos-code", "behavior": "straight",
+                             "light": {"kind": "sweep", "period_s": 10}})
+    assert sc.behavior.name == "straight" and sc.light.kind == "sweep"
+    same = scenario_from_dict({"preset": "argos-code", "behavior": {"kind": "phototaxis", "p_right": 1.0}})
+    assert same.behavior.reference == 2000.0 and same.behavior.p_right == 1.0  # merged
