@@ -197,3 +197,114 @@ class Phototaxis:
 
 
 BEHAVIORS = {"straight": Straight, "blink": Blink, "random_walk": RandomWalk, "phototaxis": Phototaxis}
+
+
+# Modes of the tick-exact ARGoS phototaxis controller.
+A_SETUP, A_LOOP, A_HOLD, A_STOP, A_TURN = range(5)
+
+
+def delay_ticks(ms: float, tick_hz: float) -> int:
+    """Control steps one ``delay(ms)`` of ARGoS's kilolib takes: none if shorter than a tick,
+    else ceil(ms / tick length) (the countdown runs until it is <= one tick)."""
+    tick_ms = 1000.0 / tick_hz
+    if ms < tick_ms - 1e-9:
+        return 0
+    return int(math.ceil(ms / tick_ms - 1e-9))
+
+
+@dataclass(frozen=True)
+class PhototaxisArgos:
+    """The authors' ``chemotaxis_adaptive_Cond_ver3_correct(_LoR).c`` as ARGoS runs it, tick by tick.
+
+    ARGoS resumes the program once per control step; every ``delay()`` yields one step per
+    tick length (delays under one tick do nothing) and each return from ``loop()`` yields one
+    more step. So, in control steps (1 step = 1 tick):
+
+    - ``setup()``: ``delay(1000)`` standing still (motors start at 0).
+    - ``loop()`` reads ``a`` (this step). If ``|a - last_light| > 20``: keep the current motion
+      for 2 steps (``delay(200)``), then with ``d = |a - 2000|`` (the reading from *before* the
+      delay) and ``diff = d - last_d`` (``last_d`` starts at 0): ``last_light = a``,
+      ``last_d = d``; ``diff < 0`` -> forward 4 steps (delay 100 + 200 + return);
+      ``diff > 1`` -> stop 1 step, turn right w.p. ``p_right`` (else left) for 21 steps
+      (delay 100 + 2000), forward 15 steps (delay 1400 + return); else 1 more step of the
+      current motion. Otherwise forward 3 steps (delay 200 + return).
+    - ``|a - reference| < 2`` -> stop (never happens with reference 2000).
+    """
+
+    p_right: float = 0.5
+    reference: float = 2000.0
+    change_threshold: float = 20.0
+    worse_margin: float = 1.0
+    setup_ms: float = 1000.0
+    hold_ms: float = 200.0
+    stop_ms: float = 100.0
+    turn_ms: float = 2100.0
+    forward_after_turn_ms: float = 1400.0
+    step_ms: float = 200.0
+    good_ms: float = 300.0
+    loop_overhead_ticks: int = 1
+    initial_last_light: float = 0.0
+    initial_last_dist: float = 0.0
+    name: str = field(default="phototaxis_argos", init=False)
+    needs_light: bool = field(default=True, init=False)
+
+    def init_state(self, shape, reading0, tick_hz):
+        return {
+            "mode": np.full(shape, A_SETUP, dtype=np.int8),
+            "deadline": np.full(shape, delay_ticks(self.setup_ms, tick_hz), dtype=np.int64),
+            "motion": np.full(shape, STOP, dtype=np.int8),
+            "last": np.full(shape, float(self.initial_last_light)),
+            "last_d": np.full(shape, float(self.initial_last_dist)),
+            "a": np.zeros(shape),
+        }
+
+    def decide(self, st, now, reading, keys, step, tick_hz):
+        def dt(ms):
+            return delay_ticks(ms, tick_hz)
+
+        o = self.loop_overhead_ticks
+        mode, deadline, motion = st["mode"], st["deadline"], st["motion"]
+        due = now >= deadline
+        new_mode, new_deadline, new_motion = mode.copy(), deadline.copy(), motion.copy()
+
+        def set_(mask, m, mo, dur):
+            if not mask.any():
+                return
+            np.copyto(new_mode, m, where=mask)
+            if mo is not None:
+                np.copyto(new_motion, mo, where=mask)
+            np.copyto(new_deadline, now + dur, where=mask)
+
+        # Loop start (also the end of setup).
+        start = due & ((mode == A_LOOP) | (mode == A_SETUP))
+        changed = np.abs(reading - st["last"]) > self.change_threshold
+        hold = start & changed
+        plain = start & ~changed
+        np.copyto(st["a"], reading, where=hold)
+        set_(hold, A_HOLD, None, dt(self.hold_ms))
+        set_(plain, A_LOOP, FORWARD, dt(self.step_ms) + o)
+        # End of the hold: decide on the reading taken at the loop start.
+        dec = due & (mode == A_HOLD)
+        d = np.abs(st["a"] - self.reference)
+        diff = d - st["last_d"]
+        better = dec & (diff < 0)
+        worse = dec & (diff > self.worse_margin)
+        same = dec & ~better & ~worse
+        np.copyto(st["last"], st["a"], where=dec)
+        np.copyto(st["last_d"], d, where=dec)
+        set_(better, A_LOOP, FORWARD, dt(100) + dt(self.good_ms - 100) + o)
+        set_(worse, A_STOP, STOP, dt(self.stop_ms))
+        set_(same, A_LOOP, None, o)
+        # After the stop: turn; after the turn: forward.
+        start_turn = due & (mode == A_STOP)
+        if np.any(start_turn):
+            right = rng.uniform(keys, step) < self.p_right
+            set_(start_turn, A_TURN, np.where(right, TURN_RIGHT, TURN_LEFT).astype(np.int8),
+                 dt(100) + dt(self.turn_ms - 100))
+        end_turn = due & (mode == A_TURN)
+        set_(end_turn, A_LOOP, FORWARD, dt(self.forward_after_turn_ms) + o)
+        st["mode"], st["motion"], st["deadline"] = new_mode, new_motion, new_deadline
+        return new_motion
+
+
+BEHAVIORS["phototaxis_argos"] = PhototaxisArgos

@@ -188,5 +188,29 @@ def test_preset_override_with_another_kind_replaces_instead_of_merging():
     sc = scenario_from_dict({"preset": "argos-code", "behavior": "straight",
                              "light": {"kind": "sweep", "period_s": 10}})
     assert sc.behavior.name == "straight" and sc.light.kind == "sweep"
-    same = scenario_from_dict({"preset": "argos-code", "behavior": {"kind": "phototaxis", "p_right": 1.0}})
+    same = scenario_from_dict({"preset": "argos-code", "behavior": {"kind": "phototaxis_argos", "p_right": 1.0}})
     assert same.behavior.reference == 2000.0 and same.behavior.p_right == 1.0  # merged
+
+
+def test_phototaxis_argos_follows_the_authors_loop_tick_by_tick():
+    """setup delay(1000) = 10 steps standing still; the first decision is always a turn
+    (last_dist starts at 0); a turn is 21 steps; the forward after it 15 steps (1400 ms + return)."""
+    sc = scenario_from_dict({"preset": "argos-code", "behavior": {"kind": "phototaxis_argos", "p_right": 1.0},
+                             "duration_s": 300})
+    res = sim.simulate(sc, SwarmTraits.uniform(4), seed=1, record_every=1)
+    m = res.traj["motion"][0, :, 1:]
+    # The clock ticks before each decision, so the 10-tick setup fills steps 0-8; then the
+    # hold (2 steps, motors still off) and the stop (1 step): the turn starts at step 12.
+    assert np.all(m[:, :12] == STOP)
+    assert np.all(m[:, 12:33] == TURN_RIGHT)            # 2.1 s = 21 steps
+    assert np.all(m[:, 33:48] == FORWARD)               # delay(1400) + loop return = 15 steps
+    assert not np.isin(m, [TURN_LEFT]).any()            # p_right = 1
+
+
+def test_phototaxis_argos_delay_rules():
+    from kilobot_twin.core.behaviors import delay_ticks
+
+    assert delay_ticks(50, 10) == 0      # shorter than a tick: no-op
+    assert delay_ticks(100, 10) == 1
+    assert delay_ticks(2000, 10) == 20
+    assert delay_ticks(150, 10) == 2     # countdown runs until <= one tick
