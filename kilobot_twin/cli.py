@@ -48,6 +48,22 @@ def check_traits(path: str) -> int:
     return len(load_swarm(path))
 
 
+def experiment(name: str, out: str = "out/experiments", preset: str = "paper", quick: bool = False, seed: int = 2023,
+               workers: int | None = None, progress: bool = True):
+    """Run one of the paper's experiments, save its arrays and plots, return its outcome."""
+    from .experiments import Settings, run_experiment
+
+    return run_experiment(name, Settings(preset, quick, seed, workers, progress), out)
+
+
+def reproduce(out: str = "out/reproduce", preset: str = "paper", quick: bool = False, seed: int = 2023,
+              workers: int | None = None, progress: bool = True) -> dict:
+    """Run all eight experiments and write DIR/report.md (+ report.json, figures, arrays)."""
+    from .experiments.report import reproduce as _reproduce
+
+    return _reproduce(out, preset, quick, seed, workers, progress)
+
+
 def demo(out: str = "out/demo", quick: bool = False, workers: int | None = None, progress: bool = True) -> dict:
     """The main job: a phototaxis campaign on embedded defaults, with a plot and a summary."""
     from .demo import run_demo
@@ -86,6 +102,26 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--workers", type=_positive_int)
     d.add_argument("--no-progress", action="store_true")
 
+    from .experiments import EXPERIMENTS
+    from .experiments.common import PRESET_NAMES
+
+    e = sub.add_parser("experiment", help="run one of the paper's experiments (arrays + plot + checks)")
+    e.add_argument("name", choices=list(EXPERIMENTS))
+    e.add_argument("--out", default="out/experiments")
+    e.add_argument("--preset", choices=PRESET_NAMES, default="paper")
+    e.add_argument("--quick", action="store_true")
+    e.add_argument("--seed", type=int, default=2023)
+    e.add_argument("--workers", type=_positive_int)
+    e.add_argument("--no-progress", action="store_true")
+
+    r = sub.add_parser("reproduce", help="run all eight experiments and write a paper-vs-ours report")
+    r.add_argument("--out", default="out/reproduce")
+    r.add_argument("--preset", choices=PRESET_NAMES, default="paper")
+    r.add_argument("--quick", action="store_true", help="reduced runs (under 2 minutes)")
+    r.add_argument("--seed", type=int, default=2023)
+    r.add_argument("--workers", type=_positive_int)
+    r.add_argument("--no-progress", action="store_true")
+
     t = sub.add_parser("traits", help="draw or check robot traits files")
     tsub = t.add_subparsers(dest="traits_verb", required=True, metavar="ACTION", parser_class=_Parser)
     td = tsub.add_parser("draw", help="draw a swarm from a population file and save it per robot")
@@ -121,6 +157,14 @@ def main(argv=None) -> int:
             res = demo(args.out, args.quick, args.workers, not args.no_progress)
             print(json.dumps(res["summary"], indent=2))
             print(f"plot: {res['plot']}\nsummary: {res['summary_path']}")
+        elif args.verb == "experiment":
+            o = experiment(args.name, args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress)
+            for c in o.checks:
+                print(f"[{'met' if c.met else 'NOT MET'}] Fig. {c.figure}: {c.fact}: paper {c.paper}, ours {c.ours}")
+            print("\n".join(["plots:"] + o.plots + [f"data: {o.meta['data']}"]))
+        elif args.verb == "reproduce":
+            doc = reproduce(args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress)
+            print(f"{doc['met']} of {doc['total']} checks met in {doc['elapsed_s']:.0f} s; report: {args.out}/report.md")
         elif args.verb == "traits":
             if args.traits_verb == "draw":
                 print(f"wrote {draw_traits(args.population, args.out, args.seed, args.robots)}")

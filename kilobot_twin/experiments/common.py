@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.scenario import PRESETS, preset_traits, scenario_from_dict
+from ..core.scenario import PRESETS, bias_axis_scale, preset_traits, scenario_from_dict
 from ..errors import ConfigError
 
 PRESET_NAMES = tuple(PRESETS)
@@ -31,6 +31,11 @@ class Settings:
     def scenario(self, **overrides):
         """The preset's scenario with experiment-specific overrides (a nested dict)."""
         return scenario_from_dict({"preset": self.preset, **overrides}, source=f"preset {self.preset}")
+
+    @property
+    def bias_scale(self) -> float:
+        """Wheel imbalance per unit of the paper's heading-bias axis under this preset."""
+        return bias_axis_scale(self.preset)
 
     def noise_traits(self) -> dict:
         """Actuation-noise traits the preset implies (Gaussian for paper, wheel for argos-code)."""
