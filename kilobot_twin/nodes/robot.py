@@ -35,7 +35,7 @@ from std_msgs.msg import ColorRGBA, String
 
 from ..errors import ConfigError
 from ..ros import convert, params, qos
-from ..ros.executors import make_executor
+from ..ros.executors import make_executor, spin
 from ..ros.model import RobotModel, SwarmModel
 from ..ros.scenarios import parse_world_document, scenario_from_document
 
@@ -174,7 +174,7 @@ def main(args=None):
         node = RobotNode(robot_id_from_args(argv))
         executor = make_executor()
         executor.add_node(node)
-        executor.spin()
+        spin(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except ConfigError as exc:

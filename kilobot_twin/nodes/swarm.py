@@ -31,7 +31,7 @@ from ..core import behaviors as B
 from ..core.traits import TRAIT_NAMES
 from ..errors import ConfigError
 from ..ros import convert, params, qos
-from ..ros.executors import make_executor
+from ..ros.executors import make_executor, spin
 from ..ros.model import SwarmModel
 from ..ros.scenarios import load_swarm_traits, parse_world_document, scenario_from_document
 from .robot import RobotNode
@@ -175,9 +175,9 @@ def main(args=None):
         node = SwarmNode()
         executor = make_executor()
         executor.add_node(node)
-        executor.spin_until_future_complete(node.world_ready)
+        spin(executor, until=node.world_ready)
         node.create_robots(executor)
-        executor.spin()
+        spin(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except ConfigError as exc:

@@ -41,7 +41,7 @@ from ..core.scenario import Scenario, scenario_from_dict
 from ..core.traits import load_yaml
 from ..errors import ConfigError
 from ..ros import convert, params, qos
-from ..ros.executors import make_executor
+from ..ros.executors import make_executor, spin
 from ..ros.scenarios import NAMED, named_scenario, world_document
 
 PROG = "kilobot-twin world"
@@ -67,6 +67,7 @@ class WorldNode(Node):
         self.field_rate_hz = params.number(self, "field_rate_hz", 2.0, minimum=0.0, strict=True)
         self.clock_hz = params.number(self, "clock_hz", 10.0, minimum=0.0, strict=True)
         self.linger_s = params.number(self, "linger_s", 0.5, minimum=0.0)
+        self.stats_file = params.text(self, "stats_file", "")
         self.scenario = self._scenario(name, path, duration)
         self.n_steps = self.scenario.n_steps
 
@@ -211,6 +212,11 @@ class WorldNode(Node):
         wall = (self.end_wall_ns - self.start_wall_ns) / 1e9
         self._publish_state("done", start_wall_ns=self.start_wall_ns, wall_s=wall, sim_s=self.scenario.duration_s,
                             steps=self.n_steps)
+        if self.stats_file:
+            with open(self.stats_file, "w") as f:
+                json.dump({"mode": self.mode, "robots": sorted(self.robots), "steps": self.n_steps,
+                           "sim_s": self.scenario.duration_s, "wall_s": wall,
+                           "real_time_factor": self.scenario.duration_s / max(wall, 1e-9)}, f, indent=1)
         self.get_logger().info(f"done: {self.scenario.duration_s:g} s simulated in {wall:.2f} s wall "
                                f"(real-time factor {self.scenario.duration_s / max(wall, 1e-9):.1f})")
         # Linger so that late subscribers still get the transient-local 'done'.
@@ -224,7 +230,7 @@ def main(args=None):
         node = WorldNode()
         executor = make_executor()
         executor.add_node(node)
-        executor.spin_until_future_complete(node.finished)
+        spin(executor, until=node.finished)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except ConfigError as exc:
