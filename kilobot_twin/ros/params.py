@@ -73,17 +73,13 @@ def declare_behavior(node) -> Any:
     """
     default_kind = Scenario().behavior.name
     kind = declare(node, "behavior", default_kind, f"one of {', '.join(B.BEHAVIORS)}")
-    chosen = {}
-    for k, cls in B.BEHAVIORS.items():
-        for f in dataclasses.fields(cls):
-            if not f.init:
-                continue
-            v = declare(node, f"{k}.{f.name}", f.default)
-            if k == kind:
-                chosen[f.name] = v
     if kind not in B.BEHAVIORS:
         raise ConfigError("behavior", f"unknown behaviour {kind!r}", f"use one of {', '.join(B.BEHAVIORS)}")
-    return behavior_from_values(kind, chosen)
+    built = {}
+    for k, cls in B.BEHAVIORS.items():
+        values = {f.name: declare(node, f"{k}.{f.name}", f.default) for f in dataclasses.fields(cls) if f.init}
+        built[k] = behavior_from_values(k, values)  # validate every kind: a typo never waits silently
+    return built[kind]
 
 
 def behavior_from_values(kind: str, values: dict) -> Any:
