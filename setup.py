@@ -23,6 +23,11 @@ setup(
     entry_points={
         "console_scripts": [
             "kilobot-twin = kilobot_twin.cli:main",
+            "robot = kilobot_twin.nodes.robot:main",
+            "swarm = kilobot_twin.nodes.swarm:main",
+            "world = kilobot_twin.nodes.world:main",
+            "analysis = kilobot_twin.nodes.analysis:main",
+            "recorder = kilobot_twin.nodes.recorder:main",
         ],
     },
 )

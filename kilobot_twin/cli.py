@@ -71,6 +71,28 @@ def demo(out: str = "out/demo", quick: bool = False, workers: int | None = None,
     return run_demo(out, quick=quick, workers=workers, progress=progress)
 
 
+def run(scenario: str = "phototaxis", robots: int = 10, duration: float = 20.0, seed: int = 0, mode: str = "lockstep",
+        traits: str | None = None, out: str = "bags/run", timeout: float | None = None, echo=None):
+    """Start world, swarm, analysis and recorder as processes; returns the run report (bag finalised)."""
+    from .ros.launcher import run_twin
+
+    return run_twin(scenario, robots, duration, seed, mode, traits, out, timeout_s=timeout, echo=echo)
+
+
+def bag_repair(path: str) -> dict:
+    """Recover every complete chunk of a bag whose recorder was killed; rewrite summary and metadata.yaml."""
+    from .ros.bag import repair_bag
+
+    return repair_bag(path)
+
+
+def bag_info(path: str) -> dict:
+    """Messages per topic and the kilobot_twin metadata of a bag."""
+    from .ros.bag import read_metadata, summary_counts
+
+    return {"counts": summary_counts(path), "metadata": read_metadata(path)}
+
+
 # --- argument parsing -----------------------------------------------------------------------
 
 class _Parser(argparse.ArgumentParser):
@@ -131,6 +153,23 @@ def _parser() -> argparse.ArgumentParser:
     td.add_argument("--robots", type=_positive_int)
     tc = tsub.add_parser("check", help="validate a traits file")
     tc.add_argument("path")
+
+    r = sub.add_parser("run", help="run the ROS 2 twin (world, swarm, analysis, recorder) into an MCAP bag")
+    r.add_argument("--scenario", default="phototaxis", help="straight, phototaxis, random_walk, blink or sync")
+    r.add_argument("--robots", type=_positive_int, default=10)
+    r.add_argument("--duration", type=float, default=20.0, help="simulated seconds")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--mode", default="lockstep", help="lockstep (deterministic, as fast as possible) or realtime")
+    r.add_argument("--traits", help="traits YAML (robots: or population:); default: a drawn population")
+    r.add_argument("--out", default="bags/run", help="bag directory bags/NAME")
+    r.add_argument("--timeout", type=float, help="give up if the world is not done after this many wall seconds")
+
+    b = sub.add_parser("bag", help="inspect or repair recorded bags")
+    bsub = b.add_subparsers(dest="bag_verb", required=True, metavar="ACTION", parser_class=_Parser)
+    br = bsub.add_parser("repair", help="recover every complete chunk of a bag whose recorder was killed")
+    br.add_argument("path")
+    bi = bsub.add_parser("info", help="messages per topic and run metadata")
+    bi.add_argument("path")
     return p
 
 
@@ -170,6 +209,24 @@ def main(argv=None) -> int:
                 print(f"wrote {draw_traits(args.population, args.out, args.seed, args.robots)}")
             else:
                 print(f"{args.path}: {check_traits(args.path)} robot(s), valid")
+        elif args.verb == "run":
+            rep = run(args.scenario, args.robots, args.duration, args.seed, args.mode, args.traits, args.out,
+                      args.timeout, echo=lambda line: print(line, file=sys.stderr))
+            print(rep.text())
+            if rep.interrupted:
+                return 130
+            return 0 if rep.ok else 1
+        elif args.verb == "bag":
+            if args.bag_verb == "repair":
+                res = bag_repair(args.path)
+                print(f"repaired {args.path}: {res['messages']} messages in {res['chunks']} complete chunk(s) on "
+                      f"{res['channels']} topic(s) recovered" + (f" (stopped at: {res['stopped_at']})" if res["stopped_at"] else ""))
+            else:
+                info = bag_info(args.path)
+                for topic, n in sorted(info["counts"].items()):
+                    print(f"{topic:<40} {n}")
+                for name, meta in info["metadata"].items():
+                    print(f"metadata {name}: {', '.join(sorted(meta))}")
         return 0
     except ConfigError as exc:
         print(f"kilobot-twin: error: {exc}", file=sys.stderr)

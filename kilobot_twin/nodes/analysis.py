@@ -1,0 +1,132 @@
+"""``analysis``: live swarm metrics from every robot's pose, LED and clock.
+
+Publishes at ``rate_hz`` (std_msgs/Float64 unless noted), under ``/analysis/``:
+
+- ``led_red_fraction``, ``led_blue_fraction``: fraction of robots showing red / blue;
+- ``order_parameter``: Kuramoto order parameter ``|mean exp(i phi)|`` of the robots' blink
+  phases ``phi = 2 pi ticks / (2 half_period_ticks)`` (blink scenarios only);
+- ``mean_distance_to_light_m``: mean distance of the robots to the light centre;
+- ``covered_area_m2``: area of the arena's coverage cells visited by any robot so far;
+- ``robots`` (std_msgs/UInt32): robots heard from.
+
+Robots are discovered on the graph (late joiners included); the scenario (light centre,
+arena, blink period) comes from the world's transient-local document.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import PoseStamped
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from sensor_msgs.msg import TimeReference
+from std_msgs.msg import ColorRGBA, Float64, String, UInt32
+
+from ..core import clocks
+from ..core.constants import LED_BLUE, LED_RED
+from ..core.scenario import Scenario
+from ..errors import ConfigError
+from ..ros import convert, params, qos
+from ..ros.executors import make_executor, spin
+from ..ros.scenarios import parse_world_document, scenario_from_document
+
+PROG = "kilobot-twin analysis"
+ROBOT_TOPIC = re.compile(r"^(?:.*/)?kilobot_(\d+)/(pose|led|clock)$")
+METRICS = ("led_red_fraction", "led_blue_fraction", "order_parameter", "mean_distance_to_light_m", "covered_area_m2")
+
+
+def swarm_metrics(x, y, led, ticks, scenario: Scenario, covered_cells: int) -> dict:
+    """The metrics of one snapshot (arrays over the robots heard from; NaN where undefined)."""
+    x, y, led, ticks = (np.asarray(a, dtype=np.float64) for a in (x, y, led, ticks))
+    out = dict.fromkeys(METRICS, float("nan"))
+    if led.size:
+        out["led_red_fraction"] = float(np.mean(led == LED_RED))
+        out["led_blue_fraction"] = float(np.mean(led == LED_BLUE))
+    if x.size:
+        cx, cy = scenario.light.center
+        out["mean_distance_to_light_m"] = float(np.mean(np.hypot(x - cx, y - cy)))
+    half = getattr(scenario.behavior, "half_period_ticks", None)
+    if half and ticks.size:
+        out["order_parameter"] = float(clocks.order_parameter(ticks, 2 * half))
+    out["covered_area_m2"] = covered_cells * scenario.arena.coverage_cell_m ** 2
+    return out
+
+
+class AnalysisNode(Node):
+    def __init__(self, *, context=None, parameter_overrides=None, **kwargs):
+        super().__init__("analysis", context=context, parameter_overrides=parameter_overrides, **kwargs)
+        rate = params.number(self, "rate_hz", 2.0, minimum=0.0, strict=True)
+        self.world = params.text(self, "world", "/world")
+        self.scenario = Scenario()
+        self.x: dict[int, float] = {}
+        self.y: dict[int, float] = {}
+        self.led: dict[int, int] = {}
+        self.ticks: dict[int, float] = {}
+        self.cells: set[int] = set()
+        self.subscribed: set[str] = set()
+        self.pubs = {m: self.create_publisher(Float64, f"~/{m}", 10) for m in METRICS}
+        self.pub_robots = self.create_publisher(UInt32, "~/robots", 10)
+        self.latest: dict = {}
+        self.create_subscription(String, f"{self.world}/scenario", self._on_world, qos.LATCHED)
+        self.create_timer(0.25, self._discover)
+        self.create_timer(1.0 / rate, self.publish_metrics)
+
+    def _on_world(self, msg: String) -> None:
+        self.scenario = scenario_from_document(parse_world_document(msg.data))
+
+    def _discover(self) -> None:
+        for topic, _ in self.get_topic_names_and_types():
+            m = ROBOT_TOPIC.match(topic)
+            if not m or topic in self.subscribed:
+                continue
+            self.subscribed.add(topic)
+            rid, kind = int(m.group(1)), m.group(2)
+            if kind == "pose":
+                self.create_subscription(PoseStamped, topic, lambda msg, r=rid: self._on_pose(r, msg), qos.DATA)
+            elif kind == "led":
+                self.create_subscription(ColorRGBA, topic, lambda msg, r=rid: self.led.__setitem__(
+                    r, convert.led_from_color(msg)), qos.DATA)
+            else:
+                self.create_subscription(TimeReference, topic, lambda msg, r=rid: self.ticks.__setitem__(
+                    r, convert.ticks_from_clock(msg, self.scenario.tick_hz)), qos.DATA)
+
+    def _on_pose(self, rid: int, msg: PoseStamped) -> None:
+        x, y, _ = convert.pose_to_xytheta(msg)
+        self.x[rid], self.y[rid] = x, y
+        self.cells.add(int(self.scenario.arena.cell_index(x, y)))
+
+    def publish_metrics(self) -> dict:
+        ids = sorted(self.x)
+        m = swarm_metrics([self.x[i] for i in ids], [self.y[i] for i in ids], list(self.led.values()),
+                          list(self.ticks.values()), self.scenario, len(self.cells))
+        for k, v in m.items():
+            if np.isfinite(v):
+                self.pubs[k].publish(Float64(data=v))
+        self.pub_robots.publish(UInt32(data=len(ids)))
+        self.latest = m
+        return m
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = AnalysisNode()
+        executor = make_executor()
+        executor.add_node(node)
+        spin(executor)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ConfigError as exc:
+        params.report_and_exit(PROG, exc)
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

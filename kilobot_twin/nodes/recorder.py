@@ -1,0 +1,163 @@
+"""``recorder``: every robot, world and analysis topic into a rosbag2-layout MCAP bag.
+
+Parameters: ``out`` (bag directory, default ``bags/<UTC time>``), ``topics`` (comma-separated
+prefixes, default ``/kilobot_,/world,/analysis,/clock``), ``discovery_period_s`` (how often
+the graph is searched for new topics: robots that join late are picked up),
+``chunk_bytes``, ``compression`` (zstd, lz4, none).
+
+Subscriptions are raw: the bytes received are written as they are (no deserialise /
+serialise round trip). Transient-local publishers (traits, the world's scenario and light
+field) are subscribed transient-local so that their one message is recorded even if it was
+published before the recorder joined. MCAP metadata record ``kilobot_twin`` holds the package
+version, seed, run, mode, the scenario and every robot's traits; ``metadata.yaml`` is written
+on shutdown (Ctrl-C / SIGTERM). See :func:`kilobot_twin.ros.bag.repair_bag` for a recorder
+that was killed.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import time
+from datetime import datetime, timezone
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from std_msgs.msg import String
+
+from .. import __version__
+from ..errors import ConfigError
+from ..ros import params
+from ..ros.bag import DEFAULT_CHUNK_BYTES, BagWriter, qos_yaml
+from ..ros.executors import make_executor, spin
+
+PROG = "kilobot-twin recorder"
+
+
+def message_class(type_name: str):
+    pkg, _, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{pkg}.msg"), name)
+
+
+class RecorderNode(Node):
+    def __init__(self, *, context=None, parameter_overrides=None, **kwargs):
+        super().__init__("recorder", context=context, parameter_overrides=parameter_overrides, **kwargs)
+        default_out = "bags/" + datetime.now(timezone.utc).strftime("%Y%m%d_%H%M%S")
+        self.out = params.text(self, "out", default_out)
+        self.prefixes = [p.strip() for p in params.text(self, "topics", "/kilobot_,/world,/analysis,/clock").split(",")
+                         if p.strip()]
+        period = params.number(self, "discovery_period_s", 0.2, minimum=0.0, strict=True)
+        chunk = params.integer(self, "chunk_bytes", DEFAULT_CHUNK_BYTES, minimum=1024)
+        compression = params.text(self, "compression", "zstd", choices=["zstd", "lz4", "none"])
+        if not self.out:
+            raise ConfigError("out", "empty bag path", "give e.g. -p out:=bags/run1")
+        try:
+            self.bag = BagWriter(self.out, chunk_size=chunk, compression=compression)
+        except OSError as exc:
+            raise ConfigError("out", f"cannot create the bag: {exc.strerror}", "give a writable directory") from None
+        self.bag.add_metadata("kilobot_twin.version", {"version": __version__, "started_at_ns": str(time.time_ns())})
+        self.channels: dict[str, int] = {}
+        self.world_doc: dict | None = None
+        self.traits: dict[int, dict] = {}
+        self.joined: list[tuple[str, int]] = []
+        self.create_timer(period, self.discover)
+        self.discover()
+
+    # --- discovery ---------------------------------------------------------------------------
+
+    def wanted(self, topic: str) -> bool:
+        return any(topic.startswith(p) for p in self.prefixes)
+
+    def discover(self) -> None:
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self.channels or not self.wanted(topic) or not types:
+                continue
+            pubs = self.get_publishers_info_by_topic(topic)
+            if not pubs:
+                continue
+            latched = any(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in pubs)
+            best_effort = all(p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in pubs)
+            type_name = types[0]
+            try:
+                cls = message_class(type_name)
+            except (ImportError, AttributeError, ValueError):
+                self.get_logger().warning(f"{topic}: type {type_name} not installed, not recorded")
+                self.channels[topic] = -1
+                continue
+            qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1 if latched else 1000,
+                             reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+            cid = self.bag.add_topic(topic, type_name, qos_yaml(2 if best_effort else 1, 1 if latched else 2,
+                                                                  qos.depth))
+            self.channels[topic] = cid
+            self.joined.append((topic, time.time_ns()))
+            self.create_subscription(cls, topic, self._callback(cid, topic), qos, raw=True)
+
+    def _callback(self, cid: int, topic: str):
+        bag = self.bag
+        time_ns = time.time_ns
+
+        # One-argument callbacks: the EventsExecutor of rclpy 7.1.6 fails on raw callbacks that
+        # also take the message info, so publish time = receive time.
+        def record(data: bytes) -> None:
+            bag.write(cid, data, time_ns())
+
+        if topic.endswith("/traits") or topic.endswith("/scenario"):
+            def record_document(data: bytes) -> None:
+                record(data)
+                self._document(topic, data)
+            return record_document
+        return record
+
+    def _document(self, topic: str, data: bytes) -> None:
+        try:
+            doc = json.loads(deserialize_message(data, String).data)
+        except ValueError:
+            return
+        if topic.endswith("/scenario") and doc.get("format", "").startswith("kilobot-twin/world"):
+            self.world_doc = doc
+            self.bag.add_metadata("kilobot_twin.world", {k: doc[k] for k in ("seed", "run", "mode", "robots", "scenario")})
+        elif topic.endswith("/traits") and "id" in doc:
+            self.traits[int(doc["id"])] = doc
+
+    # --- close -------------------------------------------------------------------------------
+
+    def close(self) -> None:
+        if self.bag.closed:
+            return
+        doc = self.world_doc or {}
+        meta = {"version": __version__, "seed": doc.get("seed", ""), "run": doc.get("run", ""), "mode": doc.get("mode", ""),
+                "scenario": doc.get("scenario", {}),
+                "traits": {str(k): {"traits": v["traits"], "behavior": v.get("behavior"), "seed": v.get("seed")}
+                           for k, v in sorted(self.traits.items())},
+                "robots_joined": len(self.traits)}
+        self.bag.add_metadata("kilobot_twin", meta)
+        self.bag.close({"kilobot_twin_version": __version__, "seed": doc.get("seed", ""), "mode": doc.get("mode", "")})
+        n = sum(t["count"] for t in self.bag.topics.values())
+        self.get_logger().info(f"bag {self.bag.dir}: {n} messages on {len(self.bag.topics)} topics")
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = RecorderNode()
+        executor = make_executor()
+        executor.add_node(node)
+        spin(executor)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ConfigError as exc:
+        params.report_and_exit(PROG, exc)
+    finally:
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

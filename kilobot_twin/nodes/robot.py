@@ -1,0 +1,189 @@
+"""``robot``: one Kilobot as a ROS 2 node.
+
+Publishes, in namespace ``kilobot_<id>`` with relative names, ``pose``, ``light``, ``led``,
+``clock`` (see :mod:`kilobot_twin.ros.convert`) and, transient-local, ``traits``.
+
+Every trait and the behaviour are parameters (defaults from the core dataclasses):
+``robot_id, seed, run, trial, swarm_size``, the traits (``heading_bias`` ... ``clock_rate``),
+``behavior`` and ``<behavior>.<field>`` (e.g. ``phototaxis.p_right``), ``world`` (the world
+node's name, default ``/world``).
+
+The environment (light field, arena, time step, start poses) comes from the world's
+transient-local scenario document, so the robot evaluates the same analytic light field as
+the batch engine without a round trip per reading. Time:
+
+- lockstep: on every ``/clock`` message for its next step, the robot steps once and publishes;
+- realtime: once the world says ``running``, a wall timer of period ``dt_s`` steps it; stamps
+  are wall time since the world's start; the robot's program runs on its own drifting clock
+  (``clock`` topic: ``time_ref`` = kilo_ticks / 31 Hz against the world time in the stamp).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import sys
+import time
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Illuminance, TimeReference
+from geometry_msgs.msg import PoseStamped
+from std_msgs.msg import ColorRGBA, String
+
+from ..errors import ConfigError
+from ..ros import convert, params, qos
+from ..ros.executors import make_executor, spin
+from ..ros.model import RobotModel, SwarmModel
+from ..ros.scenarios import parse_world_document, scenario_from_document
+
+PROG = "kilobot-twin robot"
+
+
+class RobotNode(Node):
+    """One robot. ``shared=(model, column)`` makes it publish a column of a swarm's batch state.
+
+    Parameters
+    ----------
+    robot_id : int, optional
+        Sets the default namespace ``kilobot_<id>``; read from the ``robot_id`` parameter
+        override when not given.
+    lean : bool
+        No parameter services and no rosout (for hundreds of robots in one process).
+    """
+
+    def __init__(self, robot_id: int | None = None, *, context=None, parameter_overrides=None, namespace=None,
+                 lean: bool = False, use_global_arguments: bool = True, standalone: bool = True):
+        if robot_id is None:
+            robot_id = next((int(p.value) for p in parameter_overrides or [] if p.name == "robot_id"), 0)
+        super().__init__("robot", namespace=namespace or f"kilobot_{robot_id}", context=context,
+                         parameter_overrides=parameter_overrides, start_parameter_services=not lean,
+                         enable_rosout=not lean, use_global_arguments=use_global_arguments)
+        self.robot_id = params.integer(self, "robot_id", robot_id, minimum=0)
+        self.seed = params.integer(self, "seed", 0, minimum=0)
+        self.run = params.integer(self, "run", 0, minimum=0)
+        self.trial = params.integer(self, "trial", 0, minimum=0)
+        self.swarm_size = params.integer(self, "swarm_size", 1, minimum=1)
+        self.world = params.text(self, "world", "/world")
+        self.traits = params.declare_traits(self)
+        self.behavior = params.declare_behavior(self)
+
+        self.pub_pose = self.create_publisher(PoseStamped, "pose", qos.DATA)
+        self.pub_light = self.create_publisher(Illuminance, "light", qos.DATA)
+        self.pub_led = self.create_publisher(ColorRGBA, "led", qos.DATA)
+        self.pub_clock = self.create_publisher(TimeReference, "clock", qos.DATA)
+        self.pub_traits = self.create_publisher(String, "traits", qos.LATCHED)
+        self.pub_traits.publish(convert.traits_to_msg(self.robot_id, self.traits,
+                                                      params.behavior_to_values(self.behavior), self.seed, self.run))
+        self.msgs = convert.RobotMessages()
+        self.model: SwarmModel | None = None
+        self.col = 0
+        self.scenario = None
+        self.mode = None
+        self.start_wall_ns = 0
+        self.timer = None
+        self.published = 0
+        self.done = False
+        if standalone:
+            self.create_subscription(String, f"{self.world}/scenario", self._on_world_msg, qos.LATCHED)
+            self.create_subscription(String, f"{self.world}/state", self._on_state_msg, qos.LATCHED)
+            self.create_subscription(Clock, "/clock", self._on_clock_msg, qos.CLOCK)
+
+    # --- inputs (called by subscriptions, or by the swarm node for its robots) ----------------
+
+    def set_world(self, doc: dict, shared: tuple[SwarmModel, int] | None = None) -> None:
+        """Adopt the world's scenario, with this robot's own behaviour."""
+        if self.model is not None:
+            return
+        self.scenario = scenario_from_document(doc).replace(behavior=self.behavior)
+        self.mode = doc.get("mode", "lockstep")
+        if shared is not None:
+            self.model, self.col = shared
+        else:
+            n = max(self.swarm_size, int(doc.get("robots", 1)))
+            self.model = RobotModel(self.scenario, self.traits, self.robot_id, self.seed, self.run, self.trial, n)
+
+    def set_state(self, doc: dict) -> None:
+        state = doc.get("state")
+        if state == "running" and self.mode == "realtime" and self.timer is None and not self.done:
+            self.start_wall_ns = int(doc["start_wall_ns"])
+            self.publish_sample(self._wall_stamp())
+            self.timer = self.create_timer(self.scenario.dt_s, self._on_timer)
+        elif state == "done":
+            self.done = True
+            if self.timer is not None:
+                self.timer.cancel()
+
+    def on_clock(self, ns: int) -> None:
+        """Lockstep: publish step 0 on the first tick, then one step per new tick."""
+        if self.model is None or self.mode != "lockstep" or self.done:
+            return
+        k = self.model.step_index
+        if ns == 0 and k == 0 and self.published == 0:
+            self.publish_sample(0)
+        elif ns == convert.step_stamp_ns(k + 1, self.scenario.dt_s):
+            self.model.step()
+            self.publish_sample(ns)
+
+    # --- outputs --------------------------------------------------------------------------------
+
+    def publish_sample(self, stamp_ns: int) -> None:
+        m = self.msgs.fill(self.model.sample(self.col, stamp_ns))
+        # Pose last: the world takes a pose as "this robot has published this step".
+        self.pub_light.publish(m.light)
+        self.pub_led.publish(m.led)
+        self.pub_clock.publish(m.clock)
+        self.pub_pose.publish(m.pose)
+        self.published += 1
+
+    def _wall_stamp(self) -> int:
+        return max(0, time.time_ns() - self.start_wall_ns)
+
+    def _on_timer(self) -> None:
+        if self.done:
+            return
+        self.model.step()
+        self.publish_sample(self._wall_stamp())
+
+    def _on_world_msg(self, msg: String) -> None:
+        self.set_world(parse_world_document(msg.data))
+
+    def _on_state_msg(self, msg: String) -> None:
+        self.set_state(json.loads(msg.data))
+
+    def _on_clock_msg(self, msg: Clock) -> None:
+        self.on_clock(convert.time_to_ns(msg.clock))
+
+
+def robot_id_from_args(argv) -> int | None:
+    """The ``-p robot_id:=N`` of a command line (the namespace must be known before the node exists)."""
+    for a in argv or []:
+        m = re.fullmatch(r"(?:robot:)?robot_id:=(\d+)", a)
+        if m:
+            return int(m.group(1))
+    return None
+
+
+def main(args=None):
+    argv = sys.argv if args is None else args
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = RobotNode(robot_id_from_args(argv))
+        executor = make_executor()
+        executor.add_node(node)
+        spin(executor)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ConfigError as exc:
+        params.report_and_exit(PROG, exc)
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

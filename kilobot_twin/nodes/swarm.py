@@ -1,0 +1,193 @@
+"""``swarm``: N robot nodes in one process (composition).
+
+Parameters: ``robots`` (N), ``traits_file`` (YAML with ``robots:`` or ``population:``; empty:
+draw from the default population of :mod:`kilobot_twin.ros.scenarios`), ``seed``, ``run``,
+``trial``, ``world``, ``batched`` (lockstep: step all robots in one vectorised core call),
+``stats_file`` (JSON written at exit: messages published, CPU, memory),
+``crash_after_steps`` (fault injection for tests: the process dies after that many steps).
+
+The robots are lean nodes (no parameter services, no rosout) and run their behaviour with
+the world's scenario (the behaviour of the scenario document, unless ``behavior`` is set).
+The process spins in the EventsExecutor.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import sys
+import time
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
+
+from ..core import behaviors as B
+from ..core.traits import TRAIT_NAMES
+from ..errors import ConfigError
+from ..ros import convert, params, qos
+from ..ros.executors import make_executor, spin
+from ..ros.model import SwarmModel
+from ..ros.scenarios import load_swarm_traits, parse_world_document, scenario_from_document
+from .robot import RobotNode
+
+PROG = "kilobot-twin swarm"
+
+
+def _rss_bytes() -> int:
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except OSError:  # pragma: no cover - not Linux
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+class SwarmNode(Node):
+    def __init__(self, *, context=None, parameter_overrides=None, **kwargs):
+        super().__init__("swarm", context=context, parameter_overrides=parameter_overrides, **kwargs)
+        self.n_robots = params.integer(self, "robots", 1, minimum=1)
+        self.seed = params.integer(self, "seed", 0, minimum=0)
+        self.run = params.integer(self, "run", 0, minimum=0)
+        self.trial = params.integer(self, "trial", 0, minimum=0)
+        self.world = params.text(self, "world", "/world")
+        self.behavior_kind = params.text(self, "behavior", "", choices=[""] + list(B.BEHAVIORS))
+        self.batched = bool(params.declare(self, "batched", True))
+        self.stats_file = params.text(self, "stats_file", "")
+        self.crash_after_steps = params.integer(self, "crash_after_steps", -1)
+        self.traits = load_swarm_traits(params.text(self, "traits_file", ""), self.n_robots, self.seed)
+        self.n_robots = len(self.traits)
+
+        self.robots: list[RobotNode] = []
+        self.model: SwarmModel | None = None
+        self.world_doc: dict | None = None
+        self.world_ready = Future()
+        self.mode = None
+        self.steps = 0
+        self.t_start = time.monotonic()
+        self.cpu_start = time.process_time()
+        self.rss_before_robots = _rss_bytes()
+        self.rss_after_robots = 0
+        self.create_subscription(String, f"{self.world}/scenario", self._on_world, qos.LATCHED)
+        self.create_subscription(String, f"{self.world}/state", self._on_state, qos.LATCHED)
+        self.create_subscription(Clock, "/clock", self._on_clock, qos.CLOCK)
+
+    # --- robots ---------------------------------------------------------------------------------
+
+    def _on_world(self, msg: String) -> None:
+        if self.world_doc is None:
+            self.world_doc = parse_world_document(msg.data)
+            self.world_ready.done() or self.world_ready.set_result(True)
+
+    def create_robots(self, executor) -> None:
+        """Create the robot nodes (after the world's scenario document arrived) and add them."""
+        doc = self.world_doc
+        scenario = scenario_from_document(doc)
+        behavior = scenario.behavior if not self.behavior_kind else B.BEHAVIORS[self.behavior_kind]()
+        scenario = scenario.replace(behavior=behavior)
+        self.mode = doc.get("mode", "lockstep")
+        common = [("seed", self.seed), ("run", self.run), ("trial", self.trial), ("world", self.world),
+                  ("swarm_size", max(self.n_robots, int(doc.get("robots", 0))))]
+        common += params.behavior_overrides(behavior)
+        if self.mode == "lockstep" and self.batched:
+            self.model = SwarmModel(scenario, self.traits, self.seed, self.run, self.trial,
+                                    max(self.n_robots, int(doc.get("robots", 0))))
+        for col, rid in enumerate(self.traits.ids):
+            tr = self.traits.robot(col)
+            overrides = [Parameter(k, value=v) for k, v in common + [("robot_id", int(rid))]]
+            overrides += [Parameter(k, value=float(getattr(tr, k))) for k in TRAIT_NAMES]
+            node = RobotNode(int(rid), context=self.context, parameter_overrides=overrides, lean=True,
+                             use_global_arguments=False, standalone=False)
+            node.set_world(doc, shared=(self.model, col) if self.model is not None else None)
+            self.robots.append(node)
+            executor.add_node(node)
+        self.rss_after_robots = _rss_bytes()
+        self.get_logger().info(f"{len(self.robots)} robot(s) up, {self.mode}"
+                               f"{' (batched physics)' if self.model is not None else ''}, "
+                               f"{(self.rss_after_robots - self.rss_before_robots) / len(self.robots) / 1e6:.2f} MB/robot")
+
+    # --- time ------------------------------------------------------------------------------------------
+
+    def _on_state(self, msg: String) -> None:
+        doc = json.loads(msg.data)
+        for r in self.robots:
+            r.set_state(doc)
+        if doc.get("state") == "running":
+            self.t_start = time.monotonic()
+            self.cpu_start = time.process_time()
+
+    def _on_clock(self, msg: Clock) -> None:
+        if not self.robots or self.mode != "lockstep":
+            return
+        ns = convert.time_to_ns(msg.clock)
+        if self.model is None:
+            for r in self.robots:
+                r.on_clock(ns)
+        elif ns == 0 and self.model.step_index == 0 and self.robots[0].published == 0:
+            for r in self.robots:
+                r.publish_sample(0)
+        elif ns == convert.step_stamp_ns(self.model.step_index + 1, self.model.scenario.dt_s):
+            self.model.step()
+            for r in self.robots:
+                r.publish_sample(ns)
+        else:
+            return
+        self.steps += 1
+        if 0 <= self.crash_after_steps < self.steps:
+            self.get_logger().error(f"crash_after_steps={self.crash_after_steps}: simulated robot crash")
+            sys.stderr.flush()
+            os._exit(70)
+
+    # --- report ------------------------------------------------------------------------------------------------
+
+    def stats(self) -> dict:
+        per_robot = {int(r.robot_id): r.published for r in self.robots}
+        total = sum(per_robot.values())
+        return {
+            "robots": len(self.robots), "mode": self.mode, "batched": self.model is not None,
+            "samples_published": total, "messages_published": 4 * total, "per_robot_samples": per_robot,
+            "topics_per_robot": ["pose", "light", "led", "clock"],
+            "wall_s": time.monotonic() - self.t_start, "cpu_s": time.process_time() - self.cpu_start,
+            "rss_bytes": _rss_bytes(), "rss_before_robots_bytes": self.rss_before_robots,
+            "rss_after_robots_bytes": self.rss_after_robots,
+        }
+
+    def write_stats(self) -> None:
+        if self.stats_file:
+            with open(self.stats_file, "w") as f:
+                json.dump(self.stats(), f, indent=1)
+
+    def destroy_node(self):
+        for r in self.robots:
+            r.destroy_node()
+        self.robots = []
+        return super().destroy_node()
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SwarmNode()
+        executor = make_executor()
+        executor.add_node(node)
+        spin(executor, until=node.world_ready)
+        node.create_robots(executor)
+        spin(executor)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ConfigError as exc:
+        params.report_and_exit(PROG, exc)
+    finally:
+        if node is not None:
+            node.write_stats()
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

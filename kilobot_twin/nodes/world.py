@@ -1,0 +1,245 @@
+"""``world``: owns the arena, the light field and time.
+
+Publishes (node ``world``, private names):
+
+- ``~/scenario`` (std_msgs/String, transient-local): the scenario document (JSON: scenario,
+  seed, run, robots, mode), from which robots rebuild exactly the batch engine's scenario;
+- ``~/light_field`` (sensor_msgs/Image 32FC1, transient-local): the field's intensity on a
+  raster over the arena (row 0 = top = +y), once, and again whenever it changes
+  (time-varying fields, at most ``field_rate_hz`` per simulated second);
+- ``~/state`` (std_msgs/String, transient-local): ``waiting`` -> ``running`` -> ``done``;
+- ``/clock`` (rosgraph_msgs/Clock): simulated time.
+
+Start gate: the world waits until ``robots`` robots are on the graph and every node named in
+``wait_for_nodes`` (comma-separated, e.g. ``recorder,analysis``) subscribes to each robot's
+``wait_topics`` (default ``pose,light,led,clock``), so that a recording holds every message,
+then ``settle_s`` more. Then:
+
+- ``lockstep``: publish /clock for step k, wait until every robot has published its pose for
+  step k, repeat; the result equals the batch engine's;
+- ``realtime``: stamp the start, publish /clock at ``clock_hz`` and stop after the duration.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import sys
+import time
+
+import numpy as np
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.task import Future
+from geometry_msgs.msg import PoseStamped
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Image
+from std_msgs.msg import String
+
+from ..core.scenario import Scenario, scenario_from_dict
+from ..core.traits import load_yaml
+from ..errors import ConfigError
+from ..ros import convert, params, qos
+from ..ros.executors import make_executor, spin
+from ..ros.scenarios import NAMED, named_scenario, world_document
+
+PROG = "kilobot-twin world"
+ROBOT_TOPIC = re.compile(r"^(?:.*/)?kilobot_(\d+)/(pose|light|led|clock)$")
+DATA_TOPICS = ("pose", "light", "led", "clock")
+
+
+class WorldNode(Node):
+    def __init__(self, *, context=None, parameter_overrides=None, **kwargs):
+        super().__init__("world", context=context, parameter_overrides=parameter_overrides, **kwargs)
+        name = params.text(self, "scenario", "straight", choices=list(NAMED))
+        path = params.text(self, "scenario_file", "")
+        duration = params.number(self, "duration_s", 0.0, minimum=0.0)
+        self.mode = params.text(self, "mode", "lockstep", choices=["lockstep", "realtime"])
+        self.seed = params.integer(self, "seed", 0, minimum=0)
+        self.run = params.integer(self, "run", 0, minimum=0)
+        self.n_robots = params.integer(self, "robots", 1, minimum=0)
+        self.wait_for_nodes = [s for s in params.text(self, "wait_for_nodes", "").split(",") if s.strip()]
+        self.wait_topics = [s.strip() for s in params.text(self, "wait_topics", ",".join(DATA_TOPICS)).split(",")
+                            if s.strip()]
+        self.settle_s = params.number(self, "settle_s", 0.5, minimum=0.0)
+        self.field_pixels = int(params.integer(self, "field_pixels", 128, minimum=2))
+        self.field_rate_hz = params.number(self, "field_rate_hz", 2.0, minimum=0.0, strict=True)
+        self.clock_hz = params.number(self, "clock_hz", 10.0, minimum=0.0, strict=True)
+        self.linger_s = params.number(self, "linger_s", 0.5, minimum=0.0)
+        self.stats_file = params.text(self, "stats_file", "")
+        self.scenario = self._scenario(name, path, duration)
+        self.n_steps = self.scenario.n_steps
+
+        self.pub_doc = self.create_publisher(String, "~/scenario", qos.LATCHED)
+        self.pub_state = self.create_publisher(String, "~/state", qos.LATCHED)
+        self.pub_field = self.create_publisher(Image, "~/light_field", qos.LATCHED)
+        self.pub_clock = self.create_publisher(Clock, "/clock", qos.CLOCK)
+        self.pub_doc.publish(convert.json_msg(world_document(self.scenario, self.seed, self.run, self.n_robots,
+                                                             self.mode)))
+        self._publish_state("waiting")
+        self._raster = self._field_raster(0.0)
+        self.pub_field.publish(convert.field_image_msg(self._raster, 0))
+        self._next_field_s = 1.0 / self.field_rate_hz
+
+        self.finished = Future()
+        self.robots: dict[int, str] = {}  # id -> pose topic
+        self.step = -1
+        self.reported: set[int] = set()
+        self.start_wall_ns = 0
+        self.end_wall_ns = 0
+        self._gate_since = None
+        self._graph_timer = self.create_timer(0.1, self._poll_graph)
+        self._clock_timer = None
+        self._field_timer = None
+
+    # --- setup --------------------------------------------------------------------------------
+
+    def _scenario(self, name: str, path: str, duration: float) -> Scenario:
+        if path:
+            try:
+                data = load_yaml(path)
+            except ConfigError:
+                raise ConfigError("scenario_file", f"{path}: file not found or not YAML", "give a scenario YAML path") from None
+            if isinstance(data, dict) and "scenario" in data:
+                data = data["scenario"]
+            sc = scenario_from_dict(data, source=path)
+        else:
+            sc = named_scenario(name, field="scenario")
+        if duration > 0:
+            sc = sc.replace(duration_s=duration)
+        return sc
+
+    def _field_raster(self, t_s: float) -> np.ndarray:
+        a = self.scenario.arena
+        n = self.field_pixels
+        xs = (np.arange(n) + 0.5) / n * a.width_m - a.width_m / 2
+        ys = a.height_m / 2 - (np.arange(n) + 0.5) / n * a.height_m
+        X, Y = np.meshgrid(xs, ys)
+        return np.asarray(self.scenario.light.intensity(X, Y, t_s), dtype=np.float64)
+
+    def _maybe_update_field(self, t_s: float) -> None:
+        if t_s + 1e-12 < self._next_field_s:
+            return
+        self._next_field_s = t_s + 1.0 / self.field_rate_hz
+        r = self._field_raster(t_s)
+        if not np.array_equal(r, self._raster):
+            self._raster = r
+            self.pub_field.publish(convert.field_image_msg(r, convert.step_stamp_ns(1, t_s)))
+
+    def _publish_state(self, state: str, **extra) -> None:
+        self.pub_state.publish(convert.json_msg({"state": state, "mode": self.mode, **extra}))
+
+    # --- start gate --------------------------------------------------------------------------------
+
+    def _poll_graph(self) -> None:
+        """Find robots; start once all are there and every awaited node subscribes to them."""
+        for topic, _types in self.get_topic_names_and_types():
+            m = ROBOT_TOPIC.match(topic)
+            if m and m.group(2) == "pose" and int(m.group(1)) not in self.robots:
+                rid = int(m.group(1))
+                self.robots[rid] = topic
+                if self.mode == "lockstep":
+                    self.create_subscription(PoseStamped, topic, lambda data, rid=rid: self._on_pose(rid, data),
+                                             qos.DATA, raw=True)
+        ready = len(self.robots) >= self.n_robots and self._subscribers_ready()
+        if not ready:
+            self._gate_since = None
+            return
+        now = time.monotonic()
+        if self._gate_since is None:
+            self._gate_since = now
+        if now - self._gate_since >= self.settle_s:
+            self._graph_timer.cancel()
+            self._start()
+
+    def _subscribers_ready(self) -> bool:
+        if not self.wait_for_nodes:
+            return True
+        for topic in self.robots.values():
+            base = topic[: -len("pose")]
+            for suffix in self.wait_topics:
+                names = {i.node_name for i in self.get_subscriptions_info_by_topic(base + suffix)}
+                if not all(n in names for n in self.wait_for_nodes):
+                    return False
+        return True
+
+    def _start(self) -> None:
+        self.start_wall_ns = time.time_ns()
+        self._publish_state("running", start_wall_ns=self.start_wall_ns, robots=sorted(self.robots))
+        self.get_logger().info(f"{self.mode}: {len(self.robots)} robot(s), {self.n_steps} steps of {self.scenario.dt_s} s")
+        if self.mode == "lockstep":
+            self._advance()
+        else:
+            self._clock_timer = self.create_timer(1.0 / self.clock_hz, self._on_clock_timer)
+
+    # --- lockstep ----------------------------------------------------------------------------------------
+
+    def _advance(self) -> None:
+        while True:
+            self.step += 1
+            self.reported.clear()
+            if self.step > self.n_steps:
+                self._finish()
+                return
+            self._maybe_update_field(self.step * self.scenario.dt_s)
+            self.pub_clock.publish(convert.clock_msg(convert.step_stamp_ns(self.step, self.scenario.dt_s)))
+            if self.robots:
+                return
+
+    def _on_pose(self, rid: int, data: bytes) -> None:
+        if self.step < 0 or self.step > self.n_steps:
+            return
+        if convert.stamp_ns_from_cdr(data) == convert.step_stamp_ns(self.step, self.scenario.dt_s):
+            self.reported.add(rid)
+            if len(self.reported) >= len(self.robots):
+                self._advance()
+
+    # --- realtime ------------------------------------------------------------------------------------------
+
+    def _on_clock_timer(self) -> None:
+        elapsed = time.time_ns() - self.start_wall_ns
+        self.pub_clock.publish(convert.clock_msg(elapsed))
+        self._maybe_update_field(elapsed / convert.NS_PER_S)
+        if elapsed >= self.scenario.duration_s * convert.NS_PER_S:
+            self._clock_timer.cancel()
+            self._finish()
+
+    # --- end ----------------------------------------------------------------------------------------------------
+
+    def _finish(self) -> None:
+        self.end_wall_ns = time.time_ns()
+        wall = (self.end_wall_ns - self.start_wall_ns) / 1e9
+        self._publish_state("done", start_wall_ns=self.start_wall_ns, wall_s=wall, sim_s=self.scenario.duration_s,
+                            steps=self.n_steps)
+        if self.stats_file:
+            with open(self.stats_file, "w") as f:
+                json.dump({"mode": self.mode, "robots": sorted(self.robots), "steps": self.n_steps,
+                           "sim_s": self.scenario.duration_s, "wall_s": wall,
+                           "real_time_factor": self.scenario.duration_s / max(wall, 1e-9)}, f, indent=1)
+        self.get_logger().info(f"done: {self.scenario.duration_s:g} s simulated in {wall:.2f} s wall "
+                               f"(real-time factor {self.scenario.duration_s / max(wall, 1e-9):.1f})")
+        # Linger so that late subscribers still get the transient-local 'done'.
+        self.create_timer(max(self.linger_s, 0.01), lambda: self.finished.done() or self.finished.set_result(True))
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = WorldNode()
+        executor = make_executor()
+        executor.add_node(node)
+        spin(executor, until=node.finished)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ConfigError as exc:
+        params.report_and_exit(PROG, exc)
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

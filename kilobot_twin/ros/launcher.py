@@ -1,0 +1,242 @@
+"""``kilobot-twin run``: start recorder, analysis, world and swarm as processes, watch, stop, sum up.
+
+This is what ``launch/twin.launch.py`` does on a full ROS install, plus supervision: the
+processes are started in the order that loses no message (recorder first; the world holds
+the start until the recorder subscribes to every robot topic), watched, and stopped in the
+order that finalises the bag (robots and world, then analysis, then the recorder with
+SIGINT so that it writes the MCAP summary and ``metadata.yaml``). Ctrl-C or SIGTERM on
+``run`` takes the same path. A process that dies early is reported and the others are still
+stopped cleanly. No rclpy import here: the nodes run in their own interpreters.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import ConfigError
+from .scenarios import NAMED, load_swarm_traits, named_scenario
+
+NODES = ("recorder", "analysis", "world", "swarm")
+
+
+@dataclass
+class Child:
+    name: str
+    proc: subprocess.Popen
+    log: Path
+    returncode: int | None = None
+    stopped_by_us: bool = False
+
+    def last_error_line(self) -> str:
+        try:
+            lines = [ln for ln in self.log.read_text(errors="replace").splitlines() if ln.strip()]
+        except OSError:
+            return ""
+        err = [ln for ln in lines if "error" in ln.lower() or "Traceback" in ln or "ERROR" in ln]
+        return (err or lines or [""])[-1]
+
+
+@dataclass
+class RunReport:
+    bag: Path
+    mode: str
+    robots: int
+    sim_s: float
+    wall_s: float | None = None
+    real_time_factor: float | None = None
+    counts: dict = field(default_factory=dict)
+    published: dict = field(default_factory=dict)
+    problems: list = field(default_factory=list)
+    interrupted: bool = False
+    swarm_stats: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems and not self.interrupted
+
+    def grouped_counts(self) -> dict[str, tuple[int, int]]:
+        """``{"/kilobot_*/pose": (messages, topics), "/clock": (n, 1), ...}``."""
+        out: dict[str, list] = {}
+        for topic, n in sorted(self.counts.items()):
+            parts = topic.split("/")
+            key = "/kilobot_*/" + "/".join(parts[2:]) if len(parts) > 2 and parts[1].startswith("kilobot_") else topic
+            acc = out.setdefault(key, [0, 0])
+            acc[0] += n
+            acc[1] += 1
+        return {k: (v[0], v[1]) for k, v in out.items()}
+
+    def text(self) -> str:
+        lines = [f"bag: {self.bag}  ({self.mode}, {self.robots} robots, {self.sim_s:g} s simulated)"]
+        if self.wall_s is not None:
+            lines.append(f"wall time {self.wall_s:.2f} s, real-time factor {self.real_time_factor:.2f}")
+        lines.append("messages per topic:")
+        for key, (n, topics) in self.grouped_counts().items():
+            kind = key.rsplit("/", 1)[-1]
+            pub = self.published.get(kind) if key.startswith("/kilobot_*/") else None
+            extra = f"  (published {pub}, recorded {100.0 * n / pub:.2f} %)" if pub else ""
+            lines.append(f"  {key:<36} {n:>9}" + (f" over {topics} topics" if topics > 1 else "") + extra)
+        if self.interrupted:
+            lines.append("interrupted: the bag was finalised")
+        for p in self.problems:
+            lines.append(f"problem: {p}")
+        return "\n".join(lines)
+
+
+def _node_cmd(name: str, **params) -> list[str]:
+    cmd = [sys.executable, "-m", f"kilobot_twin.nodes.{name}", "--ros-args"]
+    for k, v in params.items():
+        if isinstance(v, bool):
+            v = "true" if v else "false"
+        elif isinstance(v, str) and (v == "" or v.strip() != v):
+            v = f"'{v}'"
+        cmd += ["-p", f"{k}:={v}"]
+    return cmd
+
+
+def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, traits: str | None, out: str):
+    """Reject bad input before any process starts (one line naming the option; exit 2)."""
+    if scenario not in NAMED:
+        raise ConfigError("--scenario", f"unknown scenario {scenario!r}", f"use one of {', '.join(NAMED)}")
+    if mode not in ("lockstep", "realtime"):
+        raise ConfigError("--mode", f"unknown mode {mode!r}", "use lockstep or realtime")
+    if robots < 1:
+        raise ConfigError("--robots", f"must be >= 1, got {robots}", "give the number of robots")
+    if not duration > 0:
+        raise ConfigError("--duration", f"must be positive, got {duration}", "give simulated seconds")
+    if seed < 0:
+        raise ConfigError("--seed", f"must be >= 0, got {seed}", "give a non-negative integer")
+    named_scenario(scenario, duration)
+    if traits:
+        load_swarm_traits(traits, robots, seed, field="--traits")
+    if (Path(out) / "metadata.yaml").exists() or any(Path(out).glob("*.mcap")):
+        raise ConfigError("--out", f"{out} already holds a bag", "choose a new bag name or delete the old one")
+
+
+def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 20.0, seed: int = 0,
+             mode: str = "lockstep", traits: str | None = None, out: str = "bags/run", timeout_s: float | None = None,
+             crash_after_steps: int = -1, echo=None, install_signal_handlers: bool = True) -> RunReport:
+    """Run the twin as separate processes; returns a :class:`RunReport` (bag finalised in every case).
+
+    ``crash_after_steps`` makes the swarm process die after that many steps (fault injection).
+    ``echo(str)`` receives progress lines.
+    """
+    validate(scenario, robots, duration, seed, mode, traits, out)
+    echo = echo or (lambda s: None)
+    bag = Path(out)
+    logs = bag.parent / f"{bag.name}.logs"
+    logs.mkdir(parents=True, exist_ok=True)
+    if timeout_s is None:
+        timeout_s = 60.0 + (duration * 1.5 if mode == "realtime" else duration * 2.0)
+    swarm_stats, world_stats = logs / "swarm_stats.json", logs / "world_stats.json"
+    for f in (swarm_stats, world_stats):
+        f.unlink(missing_ok=True)
+    cmds = {
+        "recorder": _node_cmd("recorder", out=str(bag)),
+        "analysis": _node_cmd("analysis"),
+        "world": _node_cmd("world", scenario=scenario, duration_s=float(duration), seed=seed, robots=robots, mode=mode,
+                           wait_for_nodes="recorder", stats_file=str(world_stats)),
+        "swarm": _node_cmd("swarm", robots=robots, seed=seed, traits_file=traits or "", stats_file=str(swarm_stats),
+                           crash_after_steps=crash_after_steps),
+    }
+    report = RunReport(bag=bag, mode=mode, robots=robots, sim_s=float(duration))
+    children: dict[str, Child] = {}
+    stop_request = {"signal": None}
+
+    def on_signal(signum, frame):
+        stop_request["signal"] = signum
+
+    old = {}
+    if install_signal_handlers:
+        for s in (signal.SIGINT, signal.SIGTERM):
+            old[s] = signal.signal(s, on_signal)
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    try:
+        for name in NODES:
+            log = logs / f"{name}.log"
+            fh = open(log, "w")
+            # Own process group: a Ctrl-C in the terminal reaches `run` only, which then stops
+            # the children in order.
+            proc = subprocess.Popen(cmds[name], stdout=fh, stderr=subprocess.STDOUT, env=env, start_new_session=True)
+            fh.close()
+            children[name] = Child(name, proc, log)
+            echo(f"started {name} (pid {proc.pid}), log {log}")
+        t0 = time.monotonic()
+        while True:
+            if stop_request["signal"] is not None:
+                report.interrupted = True
+                echo(f"received {signal.Signals(stop_request['signal']).name}: stopping")
+                break
+            for c in children.values():
+                if c.returncode is None:
+                    c.returncode = c.proc.poll()
+            w = children["world"]
+            if w.returncode == 0:
+                break
+            dead = [c for c in children.values() if c.returncode is not None and c.name != "world"]
+            if w.returncode not in (None, 0):
+                dead.append(w)
+            if dead:
+                for c in dead:
+                    msg = f"{c.name} exited early with code {c.returncode}"
+                    line = c.last_error_line()
+                    report.problems.append(msg + (f": {line}" if line else "") + f" (log {c.log})")
+                    echo(report.problems[-1])
+                break
+            if time.monotonic() - t0 > timeout_s:
+                report.problems.append(f"timed out after {timeout_s:.0f} s (world not done; see {logs})")
+                break
+            time.sleep(0.05)
+        time.sleep(0.3)  # let the last messages reach the recorder
+    finally:
+        for name in ("world", "swarm", "analysis", "recorder"):
+            if name in children:
+                _stop(children[name], 20.0 if name == "recorder" else 10.0)
+        for s, h in old.items():
+            signal.signal(s, h)
+    rec = children.get("recorder")
+    if rec is not None and rec.returncode not in (0, None) and rec.stopped_by_us and rec.returncode < 0:
+        report.problems.append(f"recorder did not stop cleanly (code {rec.returncode}); try `kilobot-twin bag repair {bag}`")
+    _fill_report(report, swarm_stats, world_stats)
+    return report
+
+
+def _stop(c: Child, timeout_s: float) -> None:
+    if c.proc.poll() is not None:
+        c.returncode = c.proc.returncode
+        return
+    c.stopped_by_us = True
+    for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 5.0), (signal.SIGKILL, 5.0)):
+        try:
+            c.proc.send_signal(sig)
+        except ProcessLookupError:
+            break
+        try:
+            c.proc.wait(wait)
+            break
+        except subprocess.TimeoutExpired:
+            continue
+    c.returncode = c.proc.poll()
+
+
+def _fill_report(report: RunReport, swarm_stats: Path, world_stats: Path) -> None:
+    from .bag import summary_counts
+
+    try:
+        report.counts = summary_counts(report.bag)
+    except Exception as exc:  # noqa: BLE001 - reported, not raised: the run is over
+        report.problems.append(f"could not read the bag summary: {exc}")
+    if world_stats.is_file():
+        ws = json.loads(world_stats.read_text())
+        report.wall_s = ws["wall_s"]
+        report.real_time_factor = ws["real_time_factor"]
+    if swarm_stats.is_file():
+        ss = json.loads(swarm_stats.read_text())
+        report.swarm_stats = ss
+        report.published = {t: ss["samples_published"] for t in ss.get("topics_per_robot", [])}

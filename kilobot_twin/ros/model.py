@@ -1,0 +1,60 @@
+"""The physics a robot node runs: the core's step function on a (1, 1) or (1, N) state.
+
+No ROS imports. A standalone robot node owns a :class:`RobotModel` (one robot, exactly
+``sim.init_state(..., robot_index=[i])`` + ``sim.step``). A ``swarm`` process in lockstep mode
+steps all its robots in one vectorised call (:class:`SwarmModel`); since every random number
+is keyed by (seed, run, robot), each robot's trajectory is the same either way, and Kuramoto
+coupling between the robots of one process is then computed exactly as in the batch engine.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core import sim
+from ..core.scenario import Scenario
+from ..core.traits import RobotTraits, SwarmTraits
+from .convert import RobotSample
+from .scenarios import start_pose
+
+
+class SwarmModel:
+    """A (1, N) batch state for robots ``ids`` of a swarm of ``n_robots`` (ids 0..n-1 for grids)."""
+
+    def __init__(self, scenario: Scenario, traits: SwarmTraits, seed: int, run: int = 0, trial: int = 0,
+                 n_robots: int | None = None):
+        self.scenario = scenario
+        n_robots = len(traits) if n_robots is None else n_robots
+        poses = None
+        if scenario.start.kind == "grid":
+            xs, ys, ts = zip(*(start_pose(scenario, seed, run, int(i), n_robots) for i in traits.ids))
+            poses = (np.concatenate(xs, axis=1), np.concatenate(ys, axis=1), np.concatenate(ts, axis=1))
+        self.state = sim.init_state(scenario, traits, seed, runs=[run], trials=[trial], poses=poses)
+        self.table = scenario.motors.wheel_table_m_s()
+        self.ids = traits.ids
+        self.variance = traits.values["sensor_noise"] ** 2 / scenario.sensor.samples
+
+    @property
+    def step_index(self) -> int:
+        return self.state.step
+
+    def step(self) -> None:
+        sim.step(self.state, self.scenario, self.table)
+
+    def sample(self, col: int, stamp_ns: int) -> RobotSample:
+        st = self.state
+        return RobotSample(
+            robot_id=int(self.ids[col]), step=st.step, stamp_ns=stamp_ns, x_m=float(st.x[0, col]),
+            y_m=float(st.y[0, col]), theta_rad=float(st.theta[0, col]), reading=float(st.reading[0, col]),
+            led=int(st.led[0, col]), ticks=float(st.ticks[0, col]), tick_hz=self.scenario.tick_hz,
+            reading_variance=float(self.variance[col]),
+        )
+
+
+class RobotModel(SwarmModel):
+    """One robot: a (1, 1) state."""
+
+    def __init__(self, scenario: Scenario, traits: RobotTraits, robot_id: int, seed: int, run: int = 0,
+                 trial: int = 0, n_robots: int = 1):
+        super().__init__(scenario, SwarmTraits.from_robots([traits], ids=[robot_id]), seed, run, trial,
+                         max(n_robots, robot_id + 1))

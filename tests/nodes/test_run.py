@@ -1,0 +1,141 @@
+"""`kilobot-twin run` end to end (separate processes), faults and bad input."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kilobot_twin.core import sim
+from kilobot_twin.ros.bag import mcap_path, read_metadata, repair_bag, summary_counts
+from kilobot_twin.ros.launcher import run_twin
+from kilobot_twin.ros.scenarios import load_swarm_traits, named_scenario
+
+from ..ros.test_bag import rerun_check, rosbags_messages
+
+ROOT = Path(__file__).resolve().parents[2]
+ENV = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+
+
+def cli(*args, **kw):
+    return subprocess.run([sys.executable, "-m", "kilobot_twin", *args], capture_output=True, text=True, env=ENV,
+                          cwd=ROOT, timeout=120, **kw)
+
+
+def test_run_lockstep_bag_equals_batch_and_holds_run_metadata(tmp_path):
+    out = tmp_path / "bags" / "lock"
+    res = cli("run", "--scenario", "random_walk", "--robots", "4", "--duration", "3", "--seed", "5", "--out", str(out))
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "real-time factor" in res.stdout and str(out) in res.stdout
+    assert rerun_check(mcap_path(out)).returncode == 0
+    counts = summary_counts(out)
+    for i in range(4):
+        for t in ("pose", "light", "led", "clock"):
+            assert counts[f"/kilobot_{i}/{t}"] == 31, (i, t)
+    meta = read_metadata(out)["kilobot_twin"]
+    assert json.loads(meta["seed"]) == 5 and meta["version"]
+    assert set(json.loads(meta["traits"])) == {"0", "1", "2", "3"}
+    assert json.loads(meta["scenario"])["behavior"]["kind"] == "random_walk"
+    # The recorded bytes decode (independent reader) to the batch engine's trajectory.
+    sc = named_scenario("random_walk", 3)
+    ref = sim.simulate(sc, load_swarm_traits("", 4, 5), 5, runs=[0], record_every=1)
+    msgs = rosbags_messages(out)
+    for i in range(4):
+        xs = [m.pose.position.x for t, m in msgs if t == f"/kilobot_{i}/pose"]
+        np.testing.assert_allclose(xs, ref.traj["x"][0, i], rtol=0, atol=1e-12)
+        light = [m.illuminance for t, m in msgs if t == f"/kilobot_{i}/light"]
+        assert len(light) == 31
+
+
+@pytest.mark.parametrize("args,field", [
+    (["run", "--scenario", "fly"], "--scenario"),
+    (["run", "--mode", "warp"], "--mode"),
+    (["run", "--traits", "/no/such.yaml"], "--traits"),
+    (["run", "--duration", "-1"], "--duration"),
+])
+def test_run_refuses_bad_input_with_one_line_and_exit_2(args, field, tmp_path):
+    res = cli(*args, "--out", str(tmp_path / "x"))
+    assert res.returncode == 2
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and field in lines[0], res.stderr
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("node,param,value", [
+    ("robot", "behavior", "fly"),
+    ("robot", "clock_rate", "-1.0"),
+    ("robot", "phototaxis.p_right", "1.5"),
+    ("swarm", "traits_file", "/no/such/traits.yaml"),
+    ("world", "scenario", "moon"),
+    ("world", "mode", "warp"),
+])
+def test_nodes_refuse_bad_parameters_with_one_line_and_exit_2(node, param, value):
+    res = subprocess.run([sys.executable, "-m", f"kilobot_twin.nodes.{node}", "--ros-args", "-p", f"{param}:={value}"],
+                         capture_output=True, text=True, env=ENV, timeout=60)
+    assert res.returncode == 2, res.stderr
+    lines = [ln for ln in res.stderr.strip().splitlines() if ln.strip()]
+    assert len(lines) == 1 and param in lines[0], res.stderr
+
+
+def test_crashed_swarm_is_reported_and_the_bag_is_still_finalised(tmp_path):
+    out = tmp_path / "crash"
+    rep = run_twin("straight", robots=3, duration=20.0, seed=1, out=str(out), crash_after_steps=30,
+                   install_signal_handlers=False)
+    assert not rep.ok
+    assert any("swarm exited early with code 70" in p for p in rep.problems), rep.problems
+    assert rerun_check(mcap_path(out)).returncode == 0
+    assert (out / "metadata.yaml").exists()
+    n = summary_counts(out)["/kilobot_0/pose"]
+    assert 30 <= n <= 32  # everything published before the crash was recorded
+
+
+def test_sigterm_on_run_finalises_the_bag(tmp_path):
+    out = tmp_path / "term"
+    p = subprocess.Popen([sys.executable, "-m", "kilobot_twin", "run", "--scenario", "blink", "--robots", "3",
+                          "--duration", "600", "--mode", "realtime", "--out", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV, cwd=ROOT)
+    deadline = time.monotonic() + 60
+    world_log = out.parent / "term.logs" / "world.log"
+    while time.monotonic() < deadline and "realtime:" not in (world_log.read_text() if world_log.exists() else ""):
+        time.sleep(0.2)
+    time.sleep(1.5)
+    p.send_signal(signal.SIGTERM)
+    stdout, stderr = p.communicate(timeout=90)
+    assert p.returncode == 130, stderr
+    assert "interrupted" in stdout
+    assert (out / "metadata.yaml").exists()
+    assert rerun_check(mcap_path(out)).returncode == 0
+    assert summary_counts(out)["/kilobot_0/pose"] >= 5
+
+
+def test_recorder_killed_with_sigkill_leaves_a_repairable_bag(tmp_path):
+    """A real recorder process, SIGKILLed mid-run: `kilobot-twin bag repair` recovers the complete chunks."""
+    out = tmp_path / "killed"
+    rec = subprocess.Popen([sys.executable, "-m", "kilobot_twin.nodes.recorder", "--ros-args", "-p", f"out:={out}",
+                            "-p", "chunk_bytes:=4096"], env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    run = subprocess.Popen([sys.executable, "-m", "kilobot_twin", "run", "--scenario", "straight", "--robots", "2",
+                            "--duration", "600", "--mode", "realtime", "--out", str(tmp_path / "other")],
+                           env=ENV, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        f = mcap_path(out)
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and (not f.exists() or f.stat().st_size < 40_000):
+            time.sleep(0.2)
+        rec.send_signal(signal.SIGKILL)
+        rec.wait(10)
+    finally:
+        run.send_signal(signal.SIGINT)
+        run.wait(60)
+    assert not (out / "metadata.yaml").exists()
+    res = cli("bag", "repair", str(out))
+    assert res.returncode == 0, res.stderr
+    assert rerun_check(mcap_path(out)).returncode == 0
+    msgs = rosbags_messages(out)
+    poses = [m for t, m in msgs if t == "/kilobot_0/pose"]
+    assert len(poses) > 10
+    assert all(np.isfinite(m.pose.position.x) and m.header.frame_id == "arena" for m in poses)
