@@ -66,12 +66,14 @@ def start_poses(scenario: Scenario, seed: int, runs, robot_ids):
     elif s.kind == "uniform":
         x = (2 * rng.uniform(keys, 0) - 1) * s.half_width_m
         y = (2 * rng.uniform(keys, 1) - 1) * s.half_width_m
-    else:  # grid: robot id k sits at row k // columns, column k % columns
+    else:  # grid: robot id k sits at row k // columns, column k % columns of a square
+        # columns x columns lattice centred on the origin (rows beyond it continue downwards).
+        # A robot's place depends on its id only, never on which other robots are simulated.
         col = robot_ids % s.columns
         row = robot_ids // s.columns
-        rows = int(np.ceil((robot_ids.max() + 1) / s.columns)) if N else 0
-        x = np.broadcast_to((col - (s.columns - 1) / 2) * s.spacing_m, (R, N)).copy()
-        y = np.broadcast_to(((rows - 1) / 2 - row) * s.spacing_m, (R, N)).copy()
+        centre = (s.columns - 1) / 2
+        x = np.broadcast_to((col - centre) * s.spacing_m, (R, N)).copy()
+        y = np.broadcast_to((centre - row) * s.spacing_m, (R, N)).copy()
     if s.heading_rad is None:
         theta = (2 * rng.uniform(keys, 2) - 1) * np.pi
     else:

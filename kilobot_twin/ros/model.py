@@ -27,7 +27,7 @@ class SwarmModel:
         n_robots = len(traits) if n_robots is None else n_robots
         poses = None
         if scenario.start.kind == "grid":
-            xs, ys, ts = zip(*(start_pose(scenario, seed, run, int(i), n_robots) for i in traits.ids))
+            xs, ys, ts = zip(*(start_pose(scenario, seed, run, int(i)) for i in traits.ids))
             poses = (np.concatenate(xs, axis=1), np.concatenate(ys, axis=1), np.concatenate(ts, axis=1))
         self.state = sim.init_state(scenario, traits, seed, runs=[run], trials=[trial], poses=poses)
         self.table = scenario.motors.wheel_table_m_s()

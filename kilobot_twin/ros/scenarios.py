@@ -66,18 +66,11 @@ def scenario_from_document(doc: Mapping[str, Any]) -> Scenario:
     return scenario_from_dict(doc["scenario"])
 
 
-def start_pose(scenario: Scenario, seed: int, run: int, robot_id: int, n_robots: int):
-    """Start (x, y, theta) of one robot as the batch engine places it in a swarm of ids 0..n-1.
-
-    Uniform and origin starts depend only on (seed, run, id); a grid start also depends on the
-    number of rows, hence on the swarm size.
-    """
+def start_pose(scenario: Scenario, seed: int, run: int, robot_id: int):
+    """Start (x, y, theta) of one robot, as the batch engine places it: a function of
+    (seed, run, id) only, for every start kind."""
     from ..core import sim
 
-    if scenario.start.kind == "grid":
-        ids = np.arange(max(int(n_robots), int(robot_id) + 1))
-        x, y, th = sim.start_poses(scenario, seed, [run], ids)
-        return x[:, [robot_id]], y[:, [robot_id]], th[:, [robot_id]]
     return sim.start_poses(scenario, seed, [run], [robot_id])
 
 

@@ -81,3 +81,13 @@ def test_trial_bias_drift_and_jitter(swarm):
     jitter = st2.bias[:, 0] - swarm.heading_bias[0]
     # sd estimate within 4 standard errors (relative SE of an sd ~ 1/sqrt(2(n-1))).
     assert abs(jitter.std(ddof=1) / 0.005 - 1) < 4 / np.sqrt(2 * 1999)
+
+
+def test_grid_start_of_a_robot_does_not_depend_on_the_batch():
+    sc = scenario_from_dict({"behavior": "blink", "start": {"kind": "grid", "spacing_m": 0.06, "columns": 7}})
+    x, y, _ = sim.start_poses(sc, 0, [0], np.arange(49))
+    for rid in (0, 24, 48):
+        xa, ya, _ = sim.start_poses(sc, 0, [0], [rid])
+        assert (xa[0, 0], ya[0, 0]) == (x[0, rid], y[0, rid])
+    # The 7x7 lattice is centred: robot 24 sits at the origin.
+    assert x[0, 24] == 0 and y[0, 24] == 0
