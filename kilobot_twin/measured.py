@@ -1,0 +1,265 @@
+"""Measured datasets (format ``kilobot-twin/measured-v1``, see shared/formats/measured-v1.md).
+
+A dataset is a folder with ``meta.yaml`` (what was run) and ``observations.csv`` (one row per
+robot per sample). :func:`load` validates both and returns per-(trial, robot) tracks; every
+problem is one line naming the file, the line and the column. Missing rows are tracking
+gaps and stay gaps: nothing is interpolated.
+
+Rows of different (trial, robot) pairs may be interleaved in any order; within one pair the
+times must increase down the file (a repeated or backwards time is an error: it usually means
+two recordings were concatenated or a trial index is wrong).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import ConfigError
+
+FORMAT = "kilobot-twin/measured-v1"
+KINDS = ("motion", "light_sweep", "blink")
+BEHAVIORS = ("straight", "phototaxis", "random_walk")
+COLUMNS = {
+    "motion": (("trial", "robot_id", "t_s", "x_m", "y_m"), ("theta_rad",)),
+    "light_sweep": (("trial", "robot_id", "t_s", "stimulus", "reading"), ()),
+    "blink": (("trial", "robot_id", "t_s", "led"), ()),
+}
+LED_VALUES = {"red": 0, "blue": 1}
+
+
+@dataclass
+class Track:
+    """One robot in one trial: sample times and the measured columns (1-D arrays)."""
+
+    t_s: np.ndarray
+    values: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+
+@dataclass
+class Dataset:
+    """A validated measured dataset.
+
+    ``tracks[(trial, robot_id)]`` holds a :class:`Track` with, by kind:
+    motion: ``x_m, y_m`` (and ``theta_rad`` if measured); light_sweep: ``stimulus, reading``;
+    blink: ``led`` (0 red, 1 blue).
+    """
+
+    path: Path
+    meta: dict
+    tracks: dict
+
+    @property
+    def kind(self) -> str:
+        return self.meta["kind"]
+
+    @property
+    def robots(self) -> list[int]:
+        return list(self.meta["robots"])
+
+    @property
+    def trials(self) -> int:
+        return int(self.meta["trials"])
+
+    @property
+    def dt_s(self) -> float:
+        return float(self.meta["dt_s"])
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.meta["duration_s"])
+
+    def track(self, trial: int, robot: int) -> Track | None:
+        return self.tracks.get((trial, robot))
+
+    def grid(self, name: str, fill=np.nan):
+        """Values on the nominal sample grid: (trials, robots, T) with gaps as ``fill``.
+
+        Samples are placed at ``round(t_s / dt_s)``; jittered times land on their nearest slot.
+        Returns (t_s (T,), values).
+        """
+        T = int(round(self.duration_s / self.dt_s)) + 1
+        out = np.full((self.trials, len(self.robots), T), fill, dtype=np.float64)
+        col = {r: i for i, r in enumerate(self.robots)}
+        for (trial, robot), tr in self.tracks.items():
+            idx = np.clip(np.rint(tr.t_s / self.dt_s).astype(np.int64), 0, T - 1)
+            out[trial, col[robot], idx] = tr.values[name]
+        return np.arange(T) * self.dt_s, out
+
+
+# --- meta.yaml -------------------------------------------------------------------------------
+
+def _need(meta, key, types, where, fix):
+    if key not in meta:
+        raise ConfigError(f"{where}: {key}", "missing", fix)
+    v = meta[key]
+    if isinstance(v, bool) or not isinstance(v, types):
+        raise ConfigError(f"{where}: {key}", f"expected {_typename(types)}, got {v!r}", fix)
+    return v
+
+
+def _typename(types):
+    types = types if isinstance(types, tuple) else (types,)
+    return " or ".join({int: "an integer", float: "a number", str: "a string", list: "a list"}.get(t, t.__name__)
+                       for t in types)
+
+
+def load_meta(folder: Path) -> dict:
+    from .core.traits import load_yaml
+
+    path = folder / "meta.yaml"
+    if not path.is_file():
+        raise ConfigError(str(path), "file not found", "a dataset folder holds meta.yaml and observations.csv")
+    meta = load_yaml(path)
+    where = str(path)
+    if not isinstance(meta, dict):
+        raise ConfigError(where, "expected a mapping of key: value", "see shared/formats/measured-v1.md")
+    fmt = _need(meta, "format", str, where, f"write format: {FORMAT}")
+    if fmt != FORMAT:
+        raise ConfigError(f"{where}: format", f"unsupported format {fmt!r}", f"write format: {FORMAT}")
+    kind = _need(meta, "kind", str, where, f"kind is one of {', '.join(KINDS)}")
+    if kind not in KINDS:
+        raise ConfigError(f"{where}: kind", f"unknown kind {kind!r}", f"use one of {', '.join(KINDS)}")
+    robots = _need(meta, "robots", list, where, "list the robot ids, e.g. robots: [0, 1, 2]")
+    if not robots or any(isinstance(r, bool) or not isinstance(r, int) for r in robots):
+        raise ConfigError(f"{where}: robots", "expected a non-empty list of integer ids", "e.g. robots: [0, 1, 2]")
+    if len(set(robots)) != len(robots):
+        raise ConfigError(f"{where}: robots", "ids are repeated", "list each robot once")
+    trials = _need(meta, "trials", int, where, "trials: NUMBER (repetitions per robot)")
+    if trials < 1:
+        raise ConfigError(f"{where}: trials", f"{trials} is not positive", "trials: NUMBER >= 1")
+    for key in ("dt_s", "duration_s"):
+        v = _need(meta, key, (int, float), where, f"{key}: SECONDS")
+        if not (v > 0 and math.isfinite(v)):
+            raise ConfigError(f"{where}: {key}", f"{v} is not a positive number of seconds", f"{key}: SECONDS > 0")
+    if kind == "motion":
+        beh = _need(meta, "behavior", str, where, f"behavior is one of {', '.join(BEHAVIORS)}")
+        if beh not in BEHAVIORS:
+            raise ConfigError(f"{where}: behavior", f"unknown behaviour {beh!r}", f"use one of {', '.join(BEHAVIORS)}")
+        v = _need(meta, "nominal_speed_m_s", (int, float), where, "nominal_speed_m_s: the commanded speed")
+        if not v > 0:
+            raise ConfigError(f"{where}: nominal_speed_m_s", f"{v} is not positive", "give the commanded speed in m/s")
+    if kind == "blink":
+        h = _need(meta, "half_period_ticks", int, where, "half_period_ticks: N (toggle every N ticks)")
+        f = _need(meta, "nominal_tick_hz", (int, float), where, "nominal_tick_hz: e.g. 31")
+        if h < 1 or not f > 0:
+            raise ConfigError(f"{where}: half_period_ticks", "must be >= 1 with a positive nominal_tick_hz",
+                              "e.g. half_period_ticks: 30, nominal_tick_hz: 31")
+    if "tracking_noise_m" in meta:
+        v = meta["tracking_noise_m"]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or v < 0:
+            raise ConfigError(f"{where}: tracking_noise_m", f"expected a non-negative number, got {v!r}", "give metres")
+    return meta
+
+
+# --- observations.csv --------------------------------------------------------------------------
+
+def load(folder: str | Path) -> Dataset:
+    """Load and validate a dataset folder (one-line :class:`ConfigError` on any problem)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ConfigError(str(folder), "not a dataset folder", "give a folder with meta.yaml and observations.csv")
+    meta = load_meta(folder)
+    path = folder / "observations.csv"
+    if not path.is_file():
+        raise ConfigError(str(path), "file not found", "a dataset folder holds meta.yaml and observations.csv")
+    required, optional = COLUMNS[meta["kind"]]
+    robots = set(meta["robots"])
+    trials = meta["trials"]
+    rows: dict[tuple[int, int], list] = {}
+    last_t: dict[tuple[int, int], float] = {}
+    with path.open(newline="") as f:
+        reader = csv.reader(f)
+        header = next(reader, None)
+        if header is None:
+            raise ConfigError(f"{path}:1", "empty file", f"the first line names the columns: {','.join(required)}")
+        header = [h.strip() for h in header]
+        for col in required:
+            if col not in header:
+                raise ConfigError(f"{path}:1", f"missing column {col!r}",
+                                  f"{meta['kind']} data needs columns {','.join(required)}")
+        idx = {c: header.index(c) for c in required + tuple(o for o in optional if o in header)}
+        numeric = [c for c in idx if c != "led"]
+        for line_no, row in enumerate(reader, start=2):
+            if not row or all(not c.strip() for c in row):
+                continue
+            if len(row) != len(header):
+                raise ConfigError(f"{path}:{line_no}", f"{len(row)} cells for {len(header)} columns",
+                                  "every row needs one cell per header column")
+            vals = {}
+            for c in numeric:
+                cell = row[idx[c]].strip()
+                try:
+                    v = float(cell)
+                except ValueError:
+                    raise ConfigError(f"{path}:{line_no}: column {c}", f"not a number: {cell!r}",
+                                      "write a plain number (tracking gaps are missing rows, not empty cells)") from None
+                if not math.isfinite(v):
+                    raise ConfigError(f"{path}:{line_no}: column {c}", f"{cell!r} is not a finite number",
+                                      "drop the row instead: a missing sample is a missing row")
+                vals[c] = v
+            if "led" in idx:
+                cell = row[idx["led"]].strip().lower()
+                if cell not in LED_VALUES:
+                    raise ConfigError(f"{path}:{line_no}: column led", f"unknown LED colour {cell!r}", "write red or blue")
+                vals["led"] = float(LED_VALUES[cell])
+            trial, robot = vals["trial"], vals["robot_id"]
+            if trial != int(trial) or not 0 <= trial < trials:
+                raise ConfigError(f"{path}:{line_no}: column trial", f"{trial:g} is not a trial in 0..{trials - 1}",
+                                  "number trials 0..trials-1 as in meta.yaml")
+            if robot != int(robot) or int(robot) not in robots:
+                raise ConfigError(f"{path}:{line_no}: column robot_id", f"robot {robot:g} is not in meta.yaml robots",
+                                  "add it to robots: or fix the id")
+            if meta["kind"] == "light_sweep" and not 0 <= vals["stimulus"] <= 1:
+                raise ConfigError(f"{path}:{line_no}: column stimulus", f"{vals['stimulus']} is outside 0..1",
+                                  "stimulus is the projected V-value in [0, 1]")
+            key = (int(trial), int(robot))
+            t = vals["t_s"]
+            if t < 0:
+                raise ConfigError(f"{path}:{line_no}: column t_s", f"negative time {t}", "t_s restarts at 0 every trial")
+            if key in last_t and t <= last_t[key]:
+                what = "repeats" if t == last_t[key] else "goes back from"
+                raise ConfigError(f"{path}:{line_no}: column t_s", f"time {t:g} {what} {last_t[key]:g} for trial {key[0]} "
+                                  f"robot {key[1]}", "each (trial, robot) needs increasing times; remove duplicates")
+            last_t[key] = t
+            rows.setdefault(key, []).append(vals)
+    if not rows:
+        raise ConfigError(str(path), "no observations", "add rows below the header")
+    cols = [c for c in idx if c not in ("trial", "robot_id", "t_s")]
+    tracks = {}
+    for key, rs in rows.items():
+        tracks[key] = Track(np.array([r["t_s"] for r in rs]), {c: np.array([r[c] for r in rs]) for c in cols})
+    return Dataset(folder, meta, tracks)
+
+
+def write(folder: str | Path, meta: dict, tracks: dict) -> Path:
+    """Write a dataset: ``tracks[(trial, robot)] = Track``; rows sorted by trial, robot, time."""
+    import yaml
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    meta = {"format": FORMAT, **meta}
+    (folder / "meta.yaml").write_text(yaml.safe_dump(meta, sort_keys=False))
+    required, optional = COLUMNS[meta["kind"]]
+    some = next(iter(tracks.values()))
+    cols = list(required) + [o for o in optional if o in some.values]
+    with (folder / "observations.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(cols)
+        for (trial, robot) in sorted(tracks):
+            tr = tracks[(trial, robot)]
+            for i in range(len(tr)):
+                row: list[Any] = [trial, robot, f"{tr.t_s[i]:.4f}"]
+                for c in cols[3:]:
+                    v = tr.values[c][i]
+                    row.append(("red", "blue")[int(v)] if c == "led" else f"{v:.6g}")
+                w.writerow(row)
+    return folder
