@@ -54,6 +54,20 @@ class Blink:
 
 
 @dataclass(frozen=True)
+class Still:
+    """Stand still and measure light every step (a robot under the projector, paper Fig. 8)."""
+
+    name: str = field(default="still", init=False)
+    needs_light: bool = field(default=True, init=False)
+
+    def init_state(self, shape, reading0, tick_hz):
+        return {}
+
+    def decide(self, st, now, reading, keys, step, tick_hz):
+        return np.full(np.shape(now), STOP, dtype=np.int8)
+
+
+@dataclass(frozen=True)
 class RandomWalk:
     """The Kilobot library's random walk, as the authors ran it.
 
@@ -196,7 +210,7 @@ class Phototaxis:
         return new_motion
 
 
-BEHAVIORS = {"straight": Straight, "blink": Blink, "random_walk": RandomWalk, "phototaxis": Phototaxis}
+BEHAVIORS = {"straight": Straight, "blink": Blink, "still": Still, "random_walk": RandomWalk, "phototaxis": Phototaxis}
 
 
 # Modes of the tick-exact ARGoS phototaxis controller.

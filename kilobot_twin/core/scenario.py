@@ -58,6 +58,10 @@ class Scenario:
         Kuramoto coupling strength k and neighbourhood radius (blink only).
     cost_window_steps : int
         The phototaxis cost is the mean distance to the light centre over this many final steps.
+    floor_tilt, floor_tilt_direction_rad :
+        A tilted floor: every robot's speed is multiplied by ``1 + floor_tilt * cos(theta - direction)``
+        (faster downhill). Not an individual trait: an environment effect, used to test that the
+        gap workflow says "unexplained" for effects outside its library.
     """
 
     behavior: Any = field(default_factory=B.Straight)
@@ -72,6 +76,8 @@ class Scenario:
     coupling_per_s: float = 0.0
     neighbour_radius_m: float = 0.10
     cost_window_steps: int = 100
+    floor_tilt: float = 0.0
+    floor_tilt_direction_rad: float = 0.0
 
     @property
     def n_steps(self) -> int:
@@ -95,6 +101,8 @@ class Scenario:
             "coupling_per_s": self.coupling_per_s,
             "neighbour_radius_m": self.neighbour_radius_m,
             "cost_window_steps": self.cost_window_steps,
+            "floor_tilt": self.floor_tilt,
+            "floor_tilt_direction_rad": self.floor_tilt_direction_rad,
         }
 
 
@@ -174,7 +182,8 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "") -> Scenario:
         raise ConfigError("behavior.p_right", f"{behavior.p_right} is not a probability", "use a value in [0, 1]", source)
 
     kw: dict[str, Any] = {"behavior": behavior}
-    for k in ("dt_s", "duration_s", "tick_hz", "coupling_per_s", "neighbour_radius_m", "cost_window_steps"):
+    for k in ("dt_s", "duration_s", "tick_hz", "coupling_per_s", "neighbour_radius_m", "cost_window_steps",
+              "floor_tilt", "floor_tilt_direction_rad"):
         if k in data:
             v = data[k]
             if isinstance(v, bool) or not isinstance(v, (int, float)):
@@ -189,6 +198,8 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "") -> Scenario:
     if "light" in data:
         kw["light"] = field_from_dict(data["light"], source)
     sc = Scenario(**kw)
+    if not -0.9 <= sc.floor_tilt <= 0.9:
+        raise ConfigError("floor_tilt", f"{sc.floor_tilt} is outside [-0.9, 0.9]", "give the relative speed change downhill", source)
     if sc.n_steps < 1:
         raise ConfigError("duration_s", "shorter than one step", "make duration_s at least dt_s", source)
     return sc

@@ -161,6 +161,9 @@ def step(st: SimState, scenario: Scenario, table: np.ndarray | None = None) -> S
     st.motion = beh.decide(st.behavior, now, st.reading, st.keys[rng.BEHAVIOR], k, scenario.tick_hz)
     vl, vr = kinematics.wheel_speeds(st.motion, st.bias, tr["speed_factor"], tr["wheel_noise"], st.keys[rng.WHEEL],
                                      k, scenario.motors, table)
+    if scenario.floor_tilt:
+        slope = 1.0 + scenario.floor_tilt * np.cos(st.theta - scenario.floor_tilt_direction_rad)
+        vl, vr = vl * slope, vr * slope
     x, y, th = kinematics.integrate(st.x, st.y, st.theta, vl, vr, tr["sigma_v"], tr["sigma_omega"],
                                     st.keys[rng.MOTION], k, dt, scenario.motors.wheel_separation_m)
     st.x, st.y = scenario.arena.confine(x, y)

@@ -87,3 +87,11 @@ def test_speed_factor_scales_path_and_keeps_radius():
     # Same radius: the heading turned is proportional to the path length.
     th = res.summary["theta"][0]
     assert th[1] / th[0] == pytest.approx(1.3, rel=1e-9)
+
+
+def test_floor_tilt_makes_speed_depend_on_heading():
+    sc = Scenario(behavior=Straight(), dt_s=0.1, duration_s=10.0, floor_tilt=0.2, floor_tilt_direction_rad=0.0)
+    headings = np.array([0.0, np.pi / 2, np.pi])
+    res = sim.simulate(sc, SwarmTraits.uniform(3), seed=0, poses=(0.0, 0.0, headings))
+    v0 = sc.motors.forward_speed_m_s * 10
+    np.testing.assert_allclose(res.summary["path_m"][0], v0 * (1 + 0.2 * np.cos(headings)), rtol=1e-9)

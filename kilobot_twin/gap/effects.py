@@ -1,0 +1,242 @@
+"""The library of named effects the gap workflow can add to the twin.
+
+Each effect is an object with ``name``, ``kind`` (the data it explains), ``fit`` (estimate its
+per-robot parameters from measured summaries on some trials, given reference simulations of the
+current model under the same conditions) and the parameters it writes into the model's traits.
+Scoring is done by the workflow (held-out likelihood by simulation), the same way for all.
+
+Conversions between traits and summaries go through reference simulations rather than formulas,
+so that the observation (tracking noise, lags, gaps, saturation) biases measured and simulated
+summaries alike and cancels in the ratio or difference.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core.constants import WHEEL_SEPARATION_M
+from ..core.traits import SwarmTraits
+from . import synth
+
+
+@dataclass
+class TwinModel:
+    """A swarm model for a dataset: traits per robot (ids = the dataset's robots)."""
+
+    kind: str
+    swarm: SwarmTraits
+    named: list = field(default_factory=list)
+
+    def with_traits(self, **arrays) -> "TwinModel":
+        return TwinModel(self.kind, self.swarm.with_values(**arrays), list(self.named))
+
+
+def _nanmean(a, axis=None):
+    with np.errstate(all="ignore"):
+        return np.nanmean(a, axis=axis)
+
+
+def _bias(turn_rate, model: TwinModel):
+    """Per-trial heading bias from turn rates: b = -omega L / v, v the model's nominal speed."""
+    v = synth.FORWARD_SPEED_M_S * model.swarm.speed_factor[None, :]
+    return -turn_rate * WHEEL_SEPARATION_M / v
+
+
+def _within_var(b):
+    """Pooled within-robot variance over trials (ddof per robot), b: (K, N)."""
+    dev = b - _nanmean(b, axis=0)[None, :]
+    n = np.isfinite(b).sum(0)
+    return float(np.nansum(dev**2) / max(int(np.sum(n - 1)), 1))
+
+
+def _est_var_bias(ref, model, resim=None):
+    """Variance of a trial's estimated bias that comes from measurement and white noise alone:
+    the spread over replicates of each (trial, robot), simulated without trial-to-trial jitter."""
+    if resim is not None and np.any(model.swarm.bias_trial_sd > 0):
+        ref = resim(model.with_traits(bias_trial_sd=np.zeros(len(model.swarm))))
+    b = _bias(ref["turn_rate"], model)  # (M, K, N)
+    return float(np.nanvar(b - _nanmean(b, axis=0)[None], ddof=1))
+
+
+# --- the base model (paper Eq. 4) ------------------------------------------------------------
+
+def nominal_model(kind: str, robot_ids) -> TwinModel:
+    from ..core.traits import TRAIT_DEFAULTS
+
+    n = len(robot_ids)
+    tr = {k: np.full(n, v) for k, v in TRAIT_DEFAULTS.items()}
+    if kind == "motion":
+        tr.update({k: np.full(n, v) for k, v in synth.NOMINAL_MOTION_NOISE.items()})
+    elif kind == "light_sweep":
+        tr.update({k: np.full(n, v) for k, v in synth.NOMINAL_SENSOR.items()})
+    return TwinModel(kind, SwarmTraits(np.asarray(robot_ids), tr))
+
+
+def fit_base(model: TwinModel, meas: dict, ref: dict) -> TwinModel:
+    """Identical robots whose population parameters (and, for motion, the per-trial turn-rate
+    spread sigma of Eq. 4) are fitted to the data; the white-noise level stays nominal."""
+    n = len(model.swarm)
+    if model.kind == "motion":
+        sf = np.full(n, np.nanmean(meas["speed"]) / np.nanmean(ref["speed"]) * model.swarm.speed_factor.mean())
+        m = model.with_traits(speed_factor=sf)
+        b = _bias(meas["turn_rate"], m)
+        spread = max(float(np.nanvar(b, ddof=1)) - _est_var_bias(ref, m), 0.0)
+        return m.with_traits(heading_bias=np.full(n, np.nanmean(b)), bias_trial_sd=np.full(n, np.sqrt(spread)),
+                             bias_drift=np.zeros(n))
+    if model.kind == "light_sweep":
+        g = model.swarm.sensor_gain.mean() * np.nanmean(meas["gain"]) / np.nanmean(ref["gain"])
+        o = model.swarm.sensor_offset.mean() + np.nanmean(meas["offset"]) - np.nanmean(ref["offset"])
+        return model.with_traits(sensor_gain=np.full(n, g), sensor_offset=np.full(n, o))
+    # Identical clocks; the spread of trial rates (Eq. 4's sigma for clocks) is fitted.
+    c = model.swarm.clock_rate.mean() * np.nanmean(meas["toggle_rate"]) / np.nanmean(ref["toggle_rate"])
+    rel = meas["toggle_rate"] / np.nanmean(meas["toggle_rate"])
+    est = _est_var_rel(ref, model)
+    spread = max(float(np.nanvar(rel, ddof=1)) - est, 0.0)
+    return model.with_traits(clock_rate=np.full(n, c), clock_trial_sd=np.full(n, np.sqrt(spread)))
+
+
+def _est_var_rel(ref, model, resim=None):
+    """Relative variance of a trial's rate estimate from measurement alone (no clock jitter)."""
+    if resim is not None and np.any(model.swarm.clock_trial_sd > 0):
+        ref = resim(model.with_traits(clock_trial_sd=np.zeros(len(model.swarm))))
+    rate = ref["toggle_rate"]
+    rel = rate / np.nanmean(rate)
+    return float(np.nanvar(rel - np.nanmean(rel, axis=0)[None], ddof=1))
+
+
+# --- named effects ---------------------------------------------------------------------------------
+
+class Effect:
+    name = ""
+    kind = ""
+    params: tuple = ()
+    explains: tuple = ()  # summary components it changes
+
+    def fit(self, model: TwinModel, meas: dict, ref: dict, resim=None) -> TwinModel:  # pragma: no cover
+        """Fit on ``meas`` (summaries of some trials) given ``ref`` (summaries of the current model
+        simulated under the same trials); ``resim(model)`` simulates another model there."""
+        raise NotImplementedError
+
+
+class HeadingBias(Effect):
+    """Persistent per-robot turn (positive = clockwise): the robot's mean bias over trials."""
+
+    name, kind, params, explains = "heading_bias", "motion", ("heading_bias",), ("turn_rate",)
+
+    def fit(self, model, meas, ref, resim=None):
+        b = _bias(meas["turn_rate"], model) - model.swarm.bias_drift[None, :] * _trial_index(meas)
+        spread = max(_within_var(b) - _est_var_bias(ref, model, resim), 0.0)
+        n = len(model.swarm)
+        return model.with_traits(heading_bias=_nanmean(b, axis=0), bias_trial_sd=np.full(n, np.sqrt(spread)))
+
+
+class BiasDrift(Effect):
+    """Heading bias that changes linearly from trial to trial (decalibration): a line per robot."""
+
+    name, kind, params, explains = "bias_drift", "motion", ("heading_bias", "bias_drift"), ("turn_rate",)
+
+    def fit(self, model, meas, ref, resim=None):
+        b = _bias(meas["turn_rate"], model)  # (K', N)
+        k = _trial_index(meas)[:, 0]
+        n = b.shape[1]
+        a, d = np.zeros(n), np.zeros(n)
+        resid = []
+        for i in range(n):
+            ok = np.isfinite(b[:, i])
+            if ok.sum() >= 2 and np.ptp(k[ok]) > 0:
+                d[i], a[i] = np.polyfit(k[ok], b[ok, i], 1)
+                resid.append(b[ok, i] - (a[i] + d[i] * k[ok]))
+            else:
+                a[i] = np.nanmean(b[:, i])
+        dof = sum(len(r) - 2 for r in resid)
+        var = sum(float((r**2).sum()) for r in resid) / max(dof, 1)
+        spread = max(var - _est_var_bias(ref, model, resim), 0.0)
+        return model.with_traits(heading_bias=a, bias_drift=d, bias_trial_sd=np.full(n, np.sqrt(spread)))
+
+
+class SpeedHeterogeneity(Effect):
+    """Per-robot speed factor."""
+
+    name, kind, params, explains = "speed_heterogeneity", "motion", ("speed_factor",), ("speed",)
+
+    def fit(self, model, meas, ref, resim=None):
+        ratio = _nanmean(meas["speed"], axis=0) / _nanmean(ref["speed"], axis=(0, 1))
+        return model.with_traits(speed_factor=model.swarm.speed_factor * ratio)
+
+
+def _noise_stats(s):
+    """Two statistics proportional to the noise variance, per replicate (leading axes):
+    mean heading diffusion, and pooled within-robot variance of the trial speeds (immune to
+    per-robot speed differences)."""
+    with np.errstate(all="ignore"):
+        d = np.nanmean(s["diffusion"], axis=(-2, -1))
+        v = s["speed"]
+        dev = v - np.nanmean(v, axis=-2, keepdims=True)
+        dof = np.maximum((np.isfinite(v).sum(-2) - 1).sum(-1), 1)
+        w = np.nansum(dev**2, axis=(-2, -1)) / dof
+    return np.stack([d, w], axis=-1)
+
+
+class MotionNoise(Effect):
+    """The population's actuation-noise level (white heading and speed noise) is refitted.
+
+    One scale multiplies sigma_omega and sigma_v. It is fitted to two statistics that grow
+    with the noise variance (heading diffusion; within-robot spread of trial speeds), each
+    compared as a measured/simulated ratio and weighted by its precision in the reference
+    simulations; a few fixed-point steps with re-simulation absorb what is not proportional
+    (tracking noise, detrending).
+    """
+
+    name, kind, params, explains = "motion_noise", "motion", ("sigma_omega", "sigma_v"), ("diffusion", "speed")
+
+    def fit(self, model, meas, ref, resim=None, iterations=3):
+        target = _noise_stats(meas)
+        m, cur = model, ref
+        for _ in range(iterations if resim is not None else 1):
+            sims = _noise_stats(cur)  # (M, 2)
+            mean = np.nanmean(sims, axis=0)
+            rel_var = np.nanvar(sims, axis=0, ddof=1) / mean**2 + 1e-6
+            w = (1 / rel_var) / (1 / rel_var).sum()
+            log_ratio = float(np.sum(w * np.log(np.clip(target / mean, 1e-4, 1e4))))
+            scale = float(np.exp(0.5 * np.clip(log_ratio, -9.0, 9.0)))
+            m = m.with_traits(sigma_omega=m.swarm.sigma_omega * scale, sigma_v=m.swarm.sigma_v * scale)
+            if resim is not None:
+                cur = resim(m)
+        # The trial-to-trial bias spread keeps only what the new noise does not already explain.
+        b = _bias(meas["turn_rate"], m)
+        spread = max(_within_var(b) - _est_var_bias(cur, m, resim), 0.0) if resim is not None else 0.0
+        return m.with_traits(bias_trial_sd=np.full(len(model.swarm), np.sqrt(spread)))
+
+
+class SensorGain(Effect):
+    """Per-robot light-sensor gain and offset."""
+
+    name, kind, params, explains = "sensor_gain", "light_sweep", ("sensor_gain", "sensor_offset"), ("gain", "offset")
+
+    def fit(self, model, meas, ref, resim=None):
+        g = model.swarm.sensor_gain * _nanmean(meas["gain"], axis=0) / _nanmean(ref["gain"], axis=(0, 1))
+        o = model.swarm.sensor_offset + _nanmean(meas["offset"], axis=0) - _nanmean(ref["offset"], axis=(0, 1))
+        return model.with_traits(sensor_gain=g, sensor_offset=o)
+
+
+class ClockDrift(Effect):
+    """Per-robot clock rate (and the within-robot trial-to-trial spread that is left)."""
+
+    name, kind, params, explains = "clock_drift", "blink", ("clock_rate",), ("toggle_rate",)
+
+    def fit(self, model, meas, ref, resim=None):
+        c = model.swarm.clock_rate * _nanmean(meas["toggle_rate"], axis=0) / _nanmean(ref["toggle_rate"], axis=(0, 1))
+        rel = meas["toggle_rate"] / _nanmean(meas["toggle_rate"], axis=0)[None, :]
+        spread = max(_within_var(rel) - _est_var_rel(ref, model, resim), 0.0)
+        return model.with_traits(clock_rate=c, clock_trial_sd=np.full(len(model.swarm), np.sqrt(spread)))
+
+
+def _trial_index(meas):
+    """(K', 1) trial indices of the measured summaries (stored under the '_trials' key)."""
+    return np.asarray(meas["_trials"], dtype=float)[:, None]
+
+
+LIBRARY: dict[str, Effect] = {e.name: e for e in (HeadingBias(), SpeedHeterogeneity(), BiasDrift(), MotionNoise(),
+                                                 SensorGain(), ClockDrift())}

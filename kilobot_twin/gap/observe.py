@@ -1,0 +1,54 @@
+"""The measurement model: what a tracker or camera makes of the true trajectories.
+
+Used both to write synthetic datasets and, inside the gap workflow, to pass simulated runs
+through the same observation as the measured ones (same sampling, same noise, same gaps), so
+that measured and simulated summaries are comparable.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Observation:
+    """Tracker properties.
+
+    tracking_noise_m : Gaussian position noise per sample (sd, m).
+    jitter_s : sample times jitter uniformly by +-jitter_s around the nominal grid.
+    drop_p : probability that a single frame is missing.
+    gap_rate_per_s, gap_s : tracking losses start at this rate and last up to gap_s seconds.
+    """
+
+    tracking_noise_m: float = 0.002
+    jitter_s: float = 0.003
+    drop_p: float = 0.02
+    gap_rate_per_s: float = 1 / 60
+    gap_s: float = 2.0
+
+    def mask(self, shape, dt_s: float, rng: np.random.Generator) -> np.ndarray:
+        """Boolean 'observed' mask (..., T): dropped frames and tracking-loss gaps removed."""
+        keep = rng.random(shape) >= self.drop_p
+        T = shape[-1]
+        flat = keep.reshape(-1, T)
+        starts = rng.random(flat.shape) < self.gap_rate_per_s * dt_s
+        for i, j in zip(*np.nonzero(starts)):
+            length = int(np.ceil(rng.uniform(0.2, 1.0) * self.gap_s / dt_s))
+            flat[i, j:j + length] = False
+        flat[:, 0] = True  # every track has its first sample (the start is known)
+        return flat.reshape(shape)
+
+
+def noisy_positions(x, y, obs: Observation, rng: np.random.Generator):
+    """Add tracking noise to true positions (same shape)."""
+    return (x + obs.tracking_noise_m * rng.standard_normal(np.shape(x)),
+            y + obs.tracking_noise_m * rng.standard_normal(np.shape(y)))
+
+
+def jittered_times(t_s, shape, obs: Observation, rng: np.random.Generator):
+    """Sample times with jitter (first sample stays at 0)."""
+    t = np.broadcast_to(t_s, shape) + rng.uniform(-obs.jitter_s, obs.jitter_s, shape)
+    t[..., 0] = 0.0
+    return np.maximum(t, 0.0)

@@ -1,0 +1,66 @@
+"""report.md for the gap workflow, with plots (read from the report, drawn separately)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def write_markdown(out: Path, report: dict, sections: list) -> Path:
+    from ..plots import _plt
+
+    plt = _plt()
+    lines = ["# Twin vs measurement", "",
+             f"Named effects (in the order added): **{', '.join(report['named_effects']) or 'none'}**; "
+             f"unexplained: **{report['unexplained']}**"
+             + (f" (signals: {', '.join(report['unexplained_signals'])})" if report["unexplained_signals"] else ""), ""]
+    for j, s in enumerate(sections):
+        lines += [f"## {s['dataset']} ({s['kind']}, {len(s['robots'])} robots x {s['trials']} trials)", "",
+                  f"- gap before: {s['gap_before']['value']:.2f} (95 % CI {s['gap_before']['ci95'][0]:.2f} .. {s['gap_before']['ci95'][1]:.2f})",
+                  f"- gap after: {s['gap_after']['value']:.2f} (95 % CI {s['gap_after']['ci95'][0]:.2f} .. {s['gap_after']['ci95'][1]:.2f})",
+                  f"- shrink: {100 * s['gap_shrink']['value']:.0f} % (95 % CI {100 * s['gap_shrink']['ci95'][0]:.0f} .. {100 * s['gap_shrink']['ci95'][1]:.0f} %)",
+                  f"- metric: {s['gap_before']['metric']}; computed on held-out trials (leave-one-trial-out)", "",
+                  "| round | signal | robots | trials | z | p |", "|---|---|---|---|---|---|"]
+        for d in s["disagreements"]:
+            lines.append(f"| {d['round']} | {d['signal']} | {d['robots'][:8]} | {d['trials']} | {d['z']:.1f} | {d['p_value']:.2g} |")
+        lines += ["", "| step | named | log-lik gain vs current (95 % CI) | runner-up | gain over it (95 % CI) | gap after |",
+                  "|---|---|---|---|---|---|"]
+        for i, st in enumerate(s["steps"]):
+            sc, ru = st["score_vs_current"], st["runner_up"]
+            lines.append(f"| {i + 1} | {st['name']} | {sc['loglik_gain']:.1f} ({sc['ci95'][0]:.1f} .. {sc['ci95'][1]:.1f}) | "
+                         f"{ru['name']} | {ru['loglik_gain_over_it'] if ru['loglik_gain_over_it'] is None else round(ru['loglik_gain_over_it'], 1)} "
+                         f"({ru['ci95'][0]:.1f} .. {ru['ci95'][1]:.1f}) | {st['gap_after']:.2f} |")
+        fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
+        res = s["_residuals"]
+        x = np.arange(len(s["robots"]))
+        axes[0].bar(x - 0.2, res["before"], 0.4, label="base model")
+        axes[0].bar(x + 0.2, res["after"], 0.4, label="updated model")
+        axes[0].set_xticks(x, s["robots"])
+        axes[0].set_xlabel("robot")
+        axes[0].set_ylabel("mean z^2 of held-out summaries")
+        axes[0].set_title("per-robot residuals")
+        axes[0].legend()
+        for k, (key, col) in enumerate((("gap_before", "tab:red"), ("gap_after", "tab:green"))):
+            v, (lo, hi) = s[key]["value"], s[key]["ci95"]
+            axes[1].bar(k, v, color=col, yerr=[[max(v - lo, 0)], [max(hi - v, 0)]], capsize=6)
+        axes[1].set_xticks([0, 1], ["before", "after"])
+        axes[1].set_title("gap with 95 % interval")
+        for i, st in enumerate(s["steps"]):
+            names = list(st["scores"])
+            axes[2].bar(np.arange(len(names)) + 0.8 * i / max(len(s["steps"]), 1), [st["scores"][n] for n in names],
+                        0.8 / max(len(s["steps"]), 1), label=f"step {i + 1}")
+            axes[2].set_xticks(np.arange(len(names)), names, rotation=20, fontsize=7)
+        axes[2].axhline(0, color="k", lw=0.5)
+        axes[2].set_title("candidate scores (held-out log-lik gain)")
+        if s["steps"]:
+            axes[2].legend(fontsize=7)
+        fig.tight_layout()
+        png = out / f"gap_{j}.png"
+        fig.savefig(png, dpi=100)
+        plt.close(fig)
+        lines += ["", f"![gap]({png.name})", ""]
+    lines += [f"Updated model: `{report['model']}` (load with `kilobot-twin run --traits` or the batch engine)."]
+    path = out / "report.md"
+    path.write_text("\n".join(lines))
+    return path

@@ -1,0 +1,451 @@
+"""``kilobot-twin gap``: hold the twin against measured data.
+
+1. **Simulate** the current model under the data's conditions (robots, trials, durations, start
+   poses, sampling, observed samples) many times.
+2. **Detect** disagreement: per-(trial, robot) summaries give statistics (between-robot F ratios,
+   trial trends, levels, speed-vs-heading dependence) whose null distribution under the current
+   model comes from those simulations; a statistic is flagged when its calibrated p-value is
+   below ``alpha`` / (number of statistics). **Localise** it to robots and trials by z-scores of
+   their means against the simulated ones.
+3. **Name** the effect: every candidate of the library is fitted on all but one trial and scored
+   by the Gaussian log-likelihood of the held-out trial's summaries under simulations of the
+   fitted model (leave-one-trial-out), per robot; a bootstrap over robots gives intervals. The
+   best is named only if its gain over the current model and over the runner-up both have a
+   95 % interval above zero. Otherwise the disagreement is ``unexplained``.
+4. **Add** it: its per-robot parameters, fitted on all trials, go into the model.
+5. **Show the gap shrink**: on held-out trials, the excess mean squared z-score of measured
+   summaries against simulations of the base and of the final model (0 = as good as the
+   model's own noise), with 95 % bootstrap intervals over robots. Repeat from 2.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__, measured
+from ..errors import ConfigError
+from . import effects as E
+from .model import COMPONENTS, Conditions, measured_summaries, simulate
+
+
+@dataclass
+class GapSettings:
+    seed: int = 0
+    alpha: float = 0.01
+    m_null: int = 120
+    m_ref: int = 20
+    m_score: int = 30
+    boot: int = 500
+    max_steps: int = 4
+
+
+# --- statistics ------------------------------------------------------------------------------
+
+def _f_between(x):
+    """One-way ANOVA F of robots over trials; x (..., K, N) -> (...)."""
+    with np.errstate(all="ignore"):
+        m_i = np.nanmean(x, axis=-2, keepdims=True)
+        m = np.nanmean(x, axis=(-2, -1), keepdims=True)
+        n_i = np.isfinite(x).sum(-2, keepdims=True)
+        N = x.shape[-1]
+        msb = np.nansum(n_i * (m_i - m) ** 2, axis=(-2, -1)) / (N - 1)
+        msw = np.nansum((x - m_i) ** 2, axis=(-2, -1)) / np.maximum(np.isfinite(x).sum((-2, -1)) - N, 1)
+        return np.log(msb / msw)
+
+
+def _f_trend(x):
+    """F of per-robot linear trends over trials against per-robot means; x (..., K, N)."""
+    K = x.shape[-2]
+    k = np.arange(K, dtype=float)[:, None]
+    with np.errstate(all="ignore"):
+        ok = np.isfinite(x)
+        m_i = np.nanmean(x, axis=-2, keepdims=True)
+        kb = (np.where(ok, k, 0).sum(-2, keepdims=True)) / ok.sum(-2, keepdims=True)
+        dk = np.where(ok, k - kb, 0.0)
+        slope = (dk * np.where(ok, x - m_i, 0)).sum(-2, keepdims=True) / (dk**2).sum(-2, keepdims=True)
+        ss0 = np.nansum((x - m_i) ** 2, axis=(-2, -1))
+        ss1 = np.nansum((x - m_i - slope * dk) ** 2, axis=(-2, -1))
+        N = x.shape[-1]
+        return np.log(((ss0 - ss1) / N) / (ss1 / max(N * (K - 2), 1)))
+
+
+def _heading_dependence(v, h):
+    """Relative amplitude of speed's dependence on heading: pooled regression of each robot's
+    trial speeds, centred on that robot's mean (so per-robot speed differences do not count),
+    on cos and sin of the trial's mean heading."""
+    with np.errstate(all="ignore"):
+        mean = np.nanmean(v, axis=(-2, -1), keepdims=True)
+        v = (v - np.nanmean(v, axis=-2, keepdims=True)) / mean + 1.0
+    shp = v.shape[:-2]
+    v2 = v.reshape(shp + (-1,))
+    h2 = h.reshape(shp + (-1,))
+    out = np.empty(shp if shp else (1,))
+    vv_all = v2.reshape(-1, v2.shape[-1])
+    hh_all = h2.reshape(-1, h2.shape[-1])
+    for i in range(vv_all.shape[0]):
+        ok = np.isfinite(vv_all[i]) & np.isfinite(hh_all[i])
+        A = np.column_stack([np.ones(ok.sum()), np.cos(hh_all[i, ok]), np.sin(hh_all[i, ok])])
+        a, c, s = np.linalg.lstsq(A, vv_all[i, ok], rcond=None)[0]
+        out.reshape(-1)[i] = math.hypot(c, s) / a
+    return out.reshape(shp) if shp else out[0]
+
+
+def statistics(kind: str, s: dict, trials: int) -> dict:
+    """name -> (value(s), sidedness). Works on (K, N) measured or (M, K, N) simulated summaries."""
+    out = {}
+    if kind == "motion":
+        out["turn_rate:between_robots"] = (_f_between(s["turn_rate"]), 1)
+        if trials >= 3:
+            out["turn_rate:trial_trend"] = (_f_trend(s["turn_rate"]), 1)
+        out["speed:between_robots"] = (_f_between(s["speed"]), 1)
+        out["diffusion:level"] = (np.nanmean(s["diffusion"], axis=(-2, -1)), 2)
+        out["speed:heading_dependence"] = (_heading_dependence(s["speed"], s["heading"]), 1)
+    elif kind == "light_sweep":
+        out["gain:between_robots"] = (_f_between(s["gain"]), 1)
+        out["offset:between_robots"] = (_f_between(s["offset"]), 1)
+    else:
+        out["toggle_rate:between_robots"] = (_f_between(s["toggle_rate"]), 1)
+    return out
+
+
+def _p_value(obs, null, sided):
+    """Calibrated p-value: z of the observed statistic against the simulated null (normal tail,
+    so that p can be smaller than 1 / number of simulations)."""
+    from scipy.stats import norm
+
+    null = null[np.isfinite(null)]
+    z = (obs - null.mean()) / max(null.std(ddof=1), 1e-12)
+    p = norm.sf(z) if sided == 1 else 2 * norm.sf(abs(z))
+    return float(z), float(p)
+
+
+def detect(kind, meas, null, trials, alpha):
+    """Flag statistics whose calibrated p < alpha / n; localise each to robots and trials."""
+    obs = statistics(kind, meas, trials)
+    sim = statistics(kind, null, trials)
+    n = len(obs)
+    found = []
+    for name, (value, sided) in obs.items():
+        z, p = _p_value(float(value), np.asarray(sim[name][0]), sided)
+        comp = name.split(":")[0]
+        robots, trials_ = _localise(meas.get(comp), null.get(comp), kind)
+        found.append({"signal": name, "statistic": float(value), "z": z, "p_value": p, "flagged": p < alpha / n,
+                      "robots": robots, "trials": trials_})
+    return found
+
+
+def _localise(x, null, kind, z_cut=3.0):
+    """Robots (by index) and trials whose mean deviates by > z_cut sd from the simulated mean."""
+    if x is None or null is None:
+        return [], []
+    with np.errstate(all="ignore"):
+        rm, rn = np.nanmean(x, axis=0), np.nanmean(null, axis=1)  # (N,), (M, N)
+        zr = (rm - np.nanmean(rn, 0)) / np.nanstd(rn, 0, ddof=1)
+        tm, tn = np.nanmean(x, axis=1), np.nanmean(null, axis=2)  # (K,), (M, K)
+        zt = (tm - np.nanmean(tn, 0)) / np.nanstd(tn, 0, ddof=1)
+    robots = [int(i) for i in np.argsort(-np.abs(zr)) if np.abs(zr[i]) > z_cut]
+    trials = [int(k) for k in np.argsort(-np.abs(zt)) if np.abs(zt[k]) > z_cut]
+    return robots, trials
+
+
+# --- fitting and held-out scoring -------------------------------------------------------------------
+
+class _Fitter:
+    """Fits sequences of effects on subsets of trials (cached), via reference simulations."""
+
+    def __init__(self, cond: Conditions, meas: dict, start: E.TwinModel, gs: GapSettings, fit_base: bool):
+        self.cond, self.meas, self.start, self.gs, self.fit_base = cond, meas, start, gs, fit_base
+        self.cache = {}
+
+    def meas_on(self, trials):
+        m = {k: v[trials] for k, v in self.meas.items() if k != "_trials"}
+        m["_trials"] = np.asarray(trials)
+        return m
+
+    def fit(self, names: tuple, trials) -> E.TwinModel:
+        key = (names, tuple(int(t) for t in trials))
+        if key in self.cache:
+            return self.cache[key]
+        meas = self.meas_on(np.asarray(trials))
+        seed = self.gs.seed + 1000 * len(names) + 17
+        model = self.start
+        if self.fit_base:
+            ref = simulate(self.cond, model.swarm, self.gs.m_ref, seed, trials)
+            model = E.fit_base(model, meas, ref)
+        for j, name in enumerate(names):
+            ref = simulate(self.cond, model.swarm, self.gs.m_ref, seed + j + 1, trials)
+
+            def resim(m, _j=j):
+                return simulate(self.cond, m.swarm, self.gs.m_ref, seed + 101 * (_j + 1), trials)
+
+            model = E.LIBRARY[name].fit(model, meas, ref, resim)
+            model.named = list(names[: j + 1])
+        self.cache[key] = model
+        return model
+
+
+def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
+    """Leave-one-trial-out predictions: per fold, simulated mean and sd of each summary."""
+    K = fitter.cond.trials
+    comps = COMPONENTS[kind]
+    pred = {c: {"mean": np.full((K, len(fitter.cond.robot_ids)), np.nan), "sd": np.full(K, np.nan)} for c in comps}
+    for k in range(K):
+        train = [t for t in range(K) if t != k]
+        model = fitter.fit(names, train)
+        sims = simulate(fitter.cond, model.swarm, fitter.gs.m_score, fitter.gs.seed + 7919 + k, [k])
+        for c in comps:
+            x = sims[c][:, 0, :]  # (M, N)
+            pred[c]["mean"][k] = np.nanmean(x, axis=0)
+            # Pooled spread, floored at 1e-4 of the level so a deterministic prediction cannot
+            # turn a tiny mismatch into an infinite log-likelihood.
+            var = np.nanmean(np.nanvar(x, axis=0, ddof=1))
+            pred[c]["sd"][k] = np.sqrt(var + (1e-4 * np.nanmean(np.abs(x))) ** 2)
+    return pred
+
+
+def _loglik_per_robot(meas, pred, comps):
+    """Sum over held-out trials and components of log N(measured; mean, sd^2), per robot."""
+    ll = 0.0
+    for c in comps:
+        mu, sd = pred[c]["mean"], pred[c]["sd"][:, None]
+        z = (meas[c] - mu) / sd
+        ll = ll + np.nansum(-0.5 * z**2 - np.log(sd) - 0.5 * np.log(2 * np.pi), axis=0)
+    return ll  # (N,)
+
+
+def _gap(meas, pred, yard, comps, robots=None) -> float:
+    """The gap: held-out prediction error in units of the final model's noise, minus 1.
+
+    Two equally weighted parts, each 0 for a model as good as its own noise:
+    per track, z = (measured - the model's simulated mean for that trial and robot) / spread;
+    per trial level, z = (mean over robots of measured - of predicted) / (spread / sqrt(n)),
+    which sees population-level errors (a wrong noise level) that single tracks hide.
+    ``robots`` (indices, may repeat) resamples robots for the bootstrap.
+    """
+    track, level = [], []
+    for c in comps:
+        m, mu, sd = meas[c], pred[c]["mean"], yard[c]["sd"][:, None]
+        if robots is not None:
+            m, mu = m[:, robots], mu[:, robots]
+        track.append(((m - mu) / sd) ** 2)
+        n = np.isfinite(m).sum(axis=1)
+        level.append(((np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (sd[:, 0] / np.sqrt(n))) ** 2)
+    return 0.5 * (np.nanmean(np.stack(track)) - 1.0) + 0.5 * (np.nanmean(np.stack(level)) - 1.0)
+
+
+def _excess_z2(meas, pred, yard, comps):
+    """Per-robot mean of the per-track z^2 - 1 (for plots of residuals per robot)."""
+    zs = [(meas[c] - pred[c]["mean"]) / yard[c]["sd"][:, None] for c in comps]
+    return np.nanmean(np.stack(zs) ** 2, axis=(0, 1)) - 1.0  # (N,)
+
+
+def _residuals(meas, base, final, comps):
+    """Per-robot held-out residuals of each model, in units of the final model's spread (for plots)."""
+    out = {}
+    for name, pred in (("before", base), ("after", final)):
+        z = [np.nanmean(((meas[c] - pred[c]["mean"]) / final[c]["sd"][:, None]) ** 2, axis=0) for c in comps]
+        out[name] = np.mean(z, axis=0)
+    return out
+
+
+def _boot(rng, values_fn, n, B):
+    idx = rng.integers(0, n, (B, n))
+    return np.array([values_fn(i) for i in idx])
+
+
+# --- the loop -------------------------------------------------------------------------------------
+
+def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = None, log=print) -> dict:
+    """Run the workflow on one dataset; returns the report section and the final model."""
+    t0 = time.perf_counter()
+    cond, meas, _ = measured_summaries(ds)
+    kind = ds.kind
+    meas["_trials"] = np.arange(cond.trials)
+    fit_base = base is None
+    start = base if base is not None else E.nominal_model(kind, cond.robot_ids)
+    fitter = _Fitter(cond, meas, start, gs, fit_base)
+    comps = COMPONENTS[kind]
+    all_trials = list(range(cond.trials))
+    rng = np.random.default_rng(gs.seed)
+    names: tuple = ()
+    steps, disagreements = [], []
+    unexplained, unexplained_signals = False, []
+    pred_cache = {(): _heldout(fitter, (), kind)}
+    candidates = [e for e in E.LIBRARY.values() if e.kind == kind]
+    for round_ in range(gs.max_steps + 1):
+        model = fitter.fit(names, all_trials)
+        null = simulate(cond, model.swarm, gs.m_null, gs.seed + 31 * (round_ + 1))
+        found = detect(kind, meas, null, cond.trials, gs.alpha)
+        flagged = [f for f in found if f["flagged"]]
+        for f in flagged:
+            disagreements.append({"round": round_, "signal": f["signal"], "robots": [int(cond.robot_ids[i]) for i in f["robots"]],
+                                  "trials": f["trials"], "statistic": f["statistic"], "z": f["z"], "p_value": f["p_value"]})
+        log(f"[{kind}] round {round_}: model {list(names) or ['base']}; flagged "
+            f"{[f['signal'] for f in flagged] or 'nothing'}")
+        if not flagged or round_ == gs.max_steps:
+            break
+        cur = pred_cache[names]
+        ll_cur = _loglik_per_robot(meas, cur, comps)
+        scores = {}
+        for e in candidates:
+            if e.name in names:
+                continue
+            cand = names + (e.name,)
+            pred_cache[cand] = _heldout(fitter, cand, kind)
+            scores[e.name] = _loglik_per_robot(meas, pred_cache[cand], comps) - ll_cur  # (N,)
+        if not scores:
+            unexplained, unexplained_signals = True, [f["signal"] for f in flagged]
+            break
+        order = sorted(scores, key=lambda k: -np.nansum(scores[k]))
+        best = order[0]
+        n = len(cond.robot_ids)
+        gain = scores[best]
+        boot_gain = _boot(rng, lambda i: np.nansum(gain[i]), n, gs.boot)
+        ci_gain = np.percentile(boot_gain, [2.5, 97.5])
+        if len(order) > 1:
+            diff = gain - scores[order[1]]
+            boot_diff = _boot(rng, lambda i: np.nansum(diff[i]), n, gs.boot)
+            ci_diff = np.percentile(boot_diff, [2.5, 97.5])
+        else:
+            ci_diff = np.array([np.inf, np.inf])
+        clear = ci_gain[0] > 0 and ci_diff[0] > 0
+        log(f"[{kind}]   scores: " + ", ".join(f"{k} {np.nansum(scores[k]):+.1f}" for k in order)
+            + f"; best {best} CI vs current [{ci_gain[0]:.1f}, {ci_gain[1]:.1f}], vs runner-up [{ci_diff[0]:.1f}, {ci_diff[1]:.1f}]")
+        resolved = []
+        if clear:
+            # A name must remove a disagreement, not only raise the likelihood elsewhere.
+            cand_model = fitter.fit(names + (best,), all_trials)
+            next_null = simulate(cond, cand_model.swarm, gs.m_null, gs.seed + 31 * (round_ + 2))
+            after = {f["signal"]: f for f in detect(kind, meas, next_null, cond.trials, gs.alpha)}
+            resolved = [f["signal"] for f in flagged if not after[f["signal"]]["flagged"]]
+            log(f"[{kind}]   {best} resolves {resolved or 'no flagged signal'}")
+        if not clear or not resolved:
+            unexplained, unexplained_signals = True, [f["signal"] for f in flagged]
+            break
+        names = names + (best,)
+        steps.append({
+            "name": best,
+            "score_vs_current": {"loglik_gain": float(np.nansum(gain)), "ci95": [float(x) for x in ci_gain]},
+            "runner_up": {"name": order[1] if len(order) > 1 else None,
+                          "loglik_gain_over_it": float(np.nansum(gain - scores[order[1]])) if len(order) > 1 else None,
+                          "ci95": [float(x) for x in ci_diff]},
+            "scores": {k: float(np.nansum(v)) for k, v in scores.items()},
+            "signals": [f["signal"] for f in flagged],
+            "resolved": resolved,
+        })
+    final = fitter.fit(names, all_trials)
+    # The gap before/after on held-out trials (leave-one-trial-out), on the final model's
+    # yardstick, with a paired bootstrap over robots.
+    pred_base, pred_final = pred_cache[()], pred_cache[names]
+    n = len(cond.robot_ids)
+    before, after = _gap(meas, pred_base, pred_final, comps), _gap(meas, pred_final, pred_final, comps)
+    idx = rng.integers(0, n, (gs.boot, n))
+    bb = np.array([(_gap(meas, pred_base, pred_final, comps, i), _gap(meas, pred_final, pred_final, comps, i)) for i in idx])
+    with np.errstate(all="ignore"):
+        shrink = 1 - bb[:, 1] / bb[:, 0]
+    for j, st in enumerate(steps):
+        st["gap_after"] = _gap(meas, pred_cache[names[: j + 1]], pred_final, comps)
+    metric = ("held-out prediction error (leave-one-trial-out) of the summaries (" + ", ".join(comps)
+              + "), z^2 - 1 in units of the final model's spread, per track and per trial level")
+    section = {
+        "dataset": str(ds.path), "kind": kind, "robots": [int(r) for r in cond.robot_ids], "trials": cond.trials,
+        "named_effects": list(names), "unexplained": unexplained, "unexplained_signals": unexplained_signals,
+        "gap_before": {"metric": metric, "value": before, "ci95": [float(x) for x in np.percentile(bb[:, 0], [2.5, 97.5])]},
+        "gap_after": {"metric": metric, "value": after, "ci95": [float(x) for x in np.percentile(bb[:, 1], [2.5, 97.5])]},
+        "gap_shrink": {"value": float(1 - after / before) if before > 0 else 0.0,
+                       "ci95": [float(x) for x in np.nanpercentile(shrink, [2.5, 97.5])]},
+        "steps": steps, "disagreements": disagreements, "seconds": time.perf_counter() - t0,
+        "_residuals": _residuals(meas, pred_cache[()], pred_cache[names], comps),
+    }
+    return {"section": section, "model": final}
+
+
+MODEL_TRAITS = {
+    "motion": ("heading_bias", "speed_factor", "bias_drift", "bias_trial_sd", "sigma_omega", "sigma_v"),
+    "light_sweep": ("sensor_gain", "sensor_offset", "sensor_noise"),
+    "blink": ("clock_rate",),
+}
+ALWAYS = ("heading_bias", "speed_factor", "bias_drift", "sensor_gain", "sensor_offset", "clock_rate")
+
+
+def _load_base(path, kind, robot_ids):
+    from ..core.traits import load_swarm
+
+    sw = load_swarm(path)
+    by_id = {int(i): j for j, i in enumerate(sw.ids)}
+    missing = [int(r) for r in robot_ids if int(r) not in by_id]
+    if missing:
+        raise ConfigError(f"{path}: robots", f"robot(s) {missing} of the data are not in the model",
+                          "add them to robots: in the model file")
+    return E.TwinModel(kind, sw.subset([by_id[int(r)] for r in robot_ids]))
+
+
+def run_gap(data: list[str], out: str | Path, model_path: str | None = None, gs: GapSettings = GapSettings(),
+            log=print) -> dict:
+    """Run the workflow on every dataset and write DIR/report.json, DIR/model.yaml, DIR/report.md."""
+    import yaml
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    sections, models = [], []
+    for d in data:
+        ds = _load_data(d)
+        base = _load_base(model_path, ds.kind, ds.robots) if model_path else None
+        res = analyse(ds, gs, base, log)
+        sections.append(res["section"])
+        models.append(res["model"])
+    robots: dict = {}
+    for m in models:
+        for j, rid in enumerate(m.swarm.ids):
+            entry = robots.setdefault(int(rid), {})
+            for k in MODEL_TRAITS[m.kind]:
+                entry[k] = float(m.swarm.values[k][j])
+    for entry in robots.values():
+        for k in ALWAYS:
+            entry.setdefault(k, 1.0 if k in ("speed_factor", "sensor_gain", "clock_rate") else 0.0)
+    model_doc = {"format": "kilobot-twin/traits-v1", "robots": robots}
+    (out / "model.yaml").write_text(yaml.safe_dump(model_doc, sort_keys=True))
+    named = [n for s in sections for n in s["named_effects"]]
+    first, last = sections[0], sections[-1]
+    report = {
+        "version": __version__, "seed": gs.seed,
+        "named_effects": named,
+        "unexplained": any(s["unexplained"] for s in sections),
+        "unexplained_signals": [sig for s in sections for sig in s["unexplained_signals"]],
+        "gap_before": first["gap_before"] if len(sections) == 1 else _combine(sections, "gap_before"),
+        "gap_after": last["gap_after"] if len(sections) == 1 else _combine(sections, "gap_after"),
+        "gap_shrink": first["gap_shrink"] if len(sections) == 1 else None,
+        "steps": [dict(st, dataset=s["dataset"]) for s in sections for st in s["steps"]],
+        "disagreements": [dict(dg, dataset=s["dataset"]) for s in sections for dg in s["disagreements"]],
+        "model": str(out / "model.yaml"),
+        "datasets": [{k: v for k, v in s.items() if not k.startswith("_")} for s in sections],
+    }
+    (out / "report.json").write_text(json.dumps(report, indent=1))
+    from .report import write_markdown
+
+    write_markdown(out, report, sections)
+    return report
+
+
+def _combine(sections, key):
+    return {"metric": sections[0][key]["metric"] + " (mean over datasets)",
+            "value": float(np.mean([s[key]["value"] for s in sections])),
+            "ci95": [float(np.mean([s[key]["ci95"][i] for s in sections])) for i in (0, 1)]}
+
+
+def _load_data(path: str) -> measured.Dataset:
+    p = Path(path)
+    if (p / "meta.yaml").is_file():
+        return measured.load(p)
+    if (p / "metadata.yaml").is_file():
+        from .bags import dataset_from_bag
+
+        return dataset_from_bag(p)
+    raise ConfigError(str(p), "neither a measured dataset (meta.yaml) nor a bag (metadata.yaml)",
+                      "give a dataset folder or a bag directory")
