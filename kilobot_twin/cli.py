@@ -93,6 +93,19 @@ def bag_info(path: str) -> dict:
     return {"counts": summary_counts(path), "metadata": read_metadata(path)}
 
 
+def view(source: str, out: str | None = None, spawn: bool = False, point: int = 0, run: int = 0) -> dict:
+    """A bag (or a results .npz with trajectories) -> a Rerun recording NAME.rrd with its blueprint."""
+    from .viewer import load_source
+    from .viewer.rerun_view import write_rrd
+
+    rec = load_source(source, point=point, run=run)
+    src = Path(source)
+    out = out or str(src.with_suffix(".rrd") if src.suffix == ".npz" else src.parent / f"{src.name}.rrd")
+    res = write_rrd(rec, out, spawn=spawn)
+    res.update(robots=rec.n_robots, steps=rec.n_steps)
+    return res
+
+
 # --- argument parsing -----------------------------------------------------------------------
 
 class _Parser(argparse.ArgumentParser):
@@ -170,6 +183,13 @@ def _parser() -> argparse.ArgumentParser:
     br.add_argument("path")
     bi = bsub.add_parser("info", help="messages per topic and run metadata")
     bi.add_argument("path")
+
+    v = sub.add_parser("view", help="convert a bag (or a results .npz with trajectories) to a Rerun recording")
+    v.add_argument("source", help="bags/NAME or results.npz")
+    v.add_argument("--out", help="recording file (default: NAME.rrd next to the source)")
+    v.add_argument("--spawn", action="store_true", help="also open a Rerun viewer")
+    v.add_argument("--point", type=int, default=0, help="results .npz: grid point index")
+    v.add_argument("--run", type=int, default=0, help="results .npz: Monte Carlo run")
     return p
 
 
@@ -227,6 +247,9 @@ def main(argv=None) -> int:
                     print(f"{topic:<40} {n}")
                 for name, meta in info["metadata"].items():
                     print(f"metadata {name}: {', '.join(sorted(meta))}")
+        elif args.verb == "view":
+            res = view(args.source, args.out, args.spawn, args.point, args.run)
+            print(f"wrote {res['path']}: {res['robots']} robots x {res['steps']} samples in {res['total_s']:.2f} s")
         return 0
     except ConfigError as exc:
         print(f"kilobot-twin: error: {exc}", file=sys.stderr)
