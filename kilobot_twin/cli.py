@@ -114,6 +114,13 @@ def replay(bag: str, rate: float = 1.0, loop: bool = False, topics: list[str] | 
     return replay_bag(bag, rate=rate, loop=loop, topics=topics, wait_for_subscribers_s=wait_for_subscribers)
 
 
+def import_measured(dataset: str, out: str) -> dict:
+    """A measured dataset (measured-v1 folder) -> a bag with the twin's topics and types."""
+    from .importer import import_dataset
+
+    return import_dataset(dataset, out)
+
+
 # --- argument parsing -----------------------------------------------------------------------
 
 class _Parser(argparse.ArgumentParser):
@@ -200,6 +207,10 @@ def _parser() -> argparse.ArgumentParser:
     rp.add_argument("--wait-for-subscribers", type=float, default=0.0, metavar="S",
                     help="wait up to S seconds until every topic has a subscriber (e.g. a recorder)")
 
+    im = sub.add_parser("import", help="turn a measured dataset (measured-v1) into a bag with the twin's topics")
+    im.add_argument("dataset", help="folder with meta.yaml and observations.csv")
+    im.add_argument("--out", required=True, help="bag directory bags/NAME")
+
     v = sub.add_parser("view", help="convert a bag (or a results .npz with trajectories) to a Rerun recording")
     v.add_argument("source", help="bags/NAME or results.npz")
     v.add_argument("--out", help="recording file (default: NAME.rrd next to the source)")
@@ -267,6 +278,11 @@ def main(argv=None) -> int:
             res = replay(args.bag, args.rate, args.loop, args.topics, args.wait_for_subscribers)
             print(f"replayed {res['messages']} messages on {res['topics']} topics in {res['wall_s']:.2f} s; timing error "
                   f"p50 {res.get('err_p50_ms', 0):.3f} ms, p99 {res.get('err_p99_ms', 0):.3f} ms")
+        elif args.verb == "import":
+            res = import_measured(args.dataset, args.out)
+            n = sum(res["counts"].values())
+            print(f"wrote {res['path']}: {res['kind']} data of {res['robots']} robot(s), {len(res['trials'])} trial(s), "
+                  f"{n} messages on {len(res['counts'])} topics")
         elif args.verb == "view":
             res = view(args.source, args.out, args.spawn, args.point, args.run)
             print(f"wrote {res['path']}: {res['robots']} robots x {res['steps']} samples in {res['total_s']:.2f} s")

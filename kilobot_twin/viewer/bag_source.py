@@ -90,16 +90,29 @@ def from_bag(bag_dir: str | Path) -> SwarmRecording:
             world_doc = deserialize_message(data, String).data
         elif topic == "/world/light_field" and field_img is None:
             field_img = convert.image_to_array(deserialize_message(data, Image))
-    if not pose:
-        raise ConfigError(str(bag_dir), "no /kilobot_<id>/pose messages", "give a bag of a twin run or an imported dataset")
+    cl, cn = np.asarray(clock_log, dtype=np.int64), np.asarray(clock_ns, dtype=np.int64)
 
-    ids = np.array(sorted(pose), dtype=np.int64)
-    stamps = {r: np.array([p[0] for p in pose[r]], dtype=np.int64) for r in ids}
-    t0 = min(int(s.min()) for s in stamps.values())
+    def log_to_stamp(log):
+        """Recorded time of a log time: the last /clock value logged at or before it."""
+        j = np.clip(np.searchsorted(cl, log, side="right") - 1, 0, len(cl) - 1)
+        return cn[j]
+
+    if not (pose or light or (led and len(cl))):
+        raise ConfigError(str(bag_dir), "no /kilobot_<id>/pose, light or led messages",
+                          "give a bag of a twin run or an imported dataset")
+    ids = np.array(sorted(set(pose) | set(light) | (set(led) if len(cl) else set())), dtype=np.int64)
+    stamps = {}
+    for r in ids:
+        parts = [np.array([p[0] for p in pose.get(r, [])], dtype=np.int64),
+                 np.array([q[0] for q in light.get(r, [])], dtype=np.int64)]
+        if r not in pose and r not in light and r in led:
+            parts.append(log_to_stamp(np.array([q[0] for q in led[r]], dtype=np.int64)))
+        stamps[r] = np.unique(np.concatenate(parts))
+    t0 = min(int(s.min()) for s in stamps.values() if len(s))
     steps = np.concatenate([np.diff(s) for s in stamps.values() if len(s) > 1] or [np.array([1])])
     steps = steps[steps > 0]
     dt_ns = int(np.median(steps)) if len(steps) else 1
-    T = max(int(round((int(s.max()) - t0) / dt_ns)) for s in stamps.values()) + 1
+    T = max(int(round((int(s.max()) - t0) / dt_ns)) for s in stamps.values() if len(s)) + 1
     N = len(ids)
     x, y, th, rd, lv, tk = (np.full((N, T), np.nan) for _ in range(6))
 
@@ -107,9 +120,10 @@ def from_bag(bag_dir: str | Path) -> SwarmRecording:
         return np.clip(np.rint((np.asarray(ns, dtype=np.float64) - t0) / dt_ns).astype(np.int64), 0, T - 1)
 
     for i, r in enumerate(ids):
-        p = np.array([q[1:] for q in pose[r]], dtype=np.float64)
-        k = slot(stamps[r])
-        x[i, k], y[i, k], th[i, k] = p[:, 1], p[:, 2], p[:, 3]
+        if r in pose:
+            p = np.array([q for q in pose[r]], dtype=np.float64)
+            k = slot(p[:, 0].astype(np.int64))
+            x[i, k], y[i, k], th[i, k] = p[:, 2], p[:, 3], p[:, 4]
         if r in light:
             a = np.array(light[r], dtype=np.float64)
             rd[i, slot(a[:, 0])] = a[:, 1]
@@ -118,9 +132,12 @@ def from_bag(bag_dir: str | Path) -> SwarmRecording:
             tk[i, slot(a[:, 0])] = a[:, 1]
         if r in led:
             a = np.array(led[r], dtype=np.float64)
-            plog = p[:, 0]
-            j = np.clip(np.searchsorted(plog, a[:, 0], side="left"), 0, len(plog) - 1)
-            lv[i, k[j]] = a[:, 1]
+            if r in pose:
+                plog = p[:, 1]
+                j = np.clip(np.searchsorted(plog, a[:, 0], side="left"), 0, len(plog) - 1)
+                lv[i, k[j]] = a[:, 1]
+            elif len(cl):
+                lv[i, slot(log_to_stamp(a[:, 0].astype(np.int64)))] = a[:, 1]
 
     scenario = None
     if world_doc:
@@ -136,7 +153,6 @@ def from_bag(bag_dir: str | Path) -> SwarmRecording:
 
     recorded = {}
     if analysis:
-        cl, cn = np.asarray(clock_log, dtype=np.int64), np.asarray(clock_ns, dtype=np.int64)
         for name, vals in analysis.items():
             a = np.array(vals, dtype=np.float64)
             if len(cl):
