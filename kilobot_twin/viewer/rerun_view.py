@@ -184,7 +184,7 @@ def write_rrd(rec: SwarmRecording, out: str | Path, spawn: bool = False) -> dict
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    stream = rr.RecordingStream(APP_ID, recording_id=f"{rec.name}")
+    stream = rr.RecordingStream(APP_ID)
     bp = blueprint()
     if spawn:
         # Start a viewer, then stream to it and to the file at once.
