@@ -28,6 +28,7 @@ setup(
             "world = kilobot_twin.nodes.world:main",
             "analysis = kilobot_twin.nodes.analysis:main",
             "recorder = kilobot_twin.nodes.recorder:main",
+            "replay = kilobot_twin.nodes.replay:main",
         ],
     },
 )

@@ -93,6 +93,34 @@ def bag_info(path: str) -> dict:
     return {"counts": summary_counts(path), "metadata": read_metadata(path)}
 
 
+def view(source: str, out: str | None = None, spawn: bool = False, point: int = 0, run: int = 0) -> dict:
+    """A bag (or a results .npz with trajectories) -> a Rerun recording NAME.rrd with its blueprint."""
+    from .viewer import load_source
+    from .viewer.rerun_view import write_rrd
+
+    rec = load_source(source, point=point, run=run)
+    src = Path(source)
+    out = out or str(src.with_suffix(".rrd") if src.suffix == ".npz" else src.parent / f"{src.name}.rrd")
+    res = write_rrd(rec, out, spawn=spawn)
+    res.update(robots=rec.n_robots, steps=rec.n_steps)
+    return res
+
+
+def replay(bag: str, rate: float = 1.0, loop: bool = False, topics: list[str] | None = None,
+           wait_for_subscribers: float = 0.0) -> dict:
+    """Publish every recorded message of a bag on its topic and type, in recorded time (and /clock)."""
+    from .nodes.replay import replay_bag
+
+    return replay_bag(bag, rate=rate, loop=loop, topics=topics, wait_for_subscribers_s=wait_for_subscribers)
+
+
+def import_measured(dataset: str, out: str) -> dict:
+    """A measured dataset (measured-v1 folder) -> a bag with the twin's topics and types."""
+    from .importer import import_dataset
+
+    return import_dataset(dataset, out)
+
+
 # --- argument parsing -----------------------------------------------------------------------
 
 class _Parser(argparse.ArgumentParser):
@@ -170,6 +198,25 @@ def _parser() -> argparse.ArgumentParser:
     br.add_argument("path")
     bi = bsub.add_parser("info", help="messages per topic and run metadata")
     bi.add_argument("path")
+
+    rp = sub.add_parser("replay", help="publish a bag again on its topics, in recorded time (with /clock)")
+    rp.add_argument("bag", help="bags/NAME")
+    rp.add_argument("--rate", type=float, default=1.0, help="speed factor (1 = as recorded, 10 = ten times faster)")
+    rp.add_argument("--loop", action="store_true", help="start again at the end (until Ctrl-C)")
+    rp.add_argument("--topics", nargs="+", help="only these topics (exact names, or prefixes ending in / or *)")
+    rp.add_argument("--wait-for-subscribers", type=float, default=0.0, metavar="S",
+                    help="wait up to S seconds until every topic has a subscriber (e.g. a recorder)")
+
+    im = sub.add_parser("import", help="turn a measured dataset (measured-v1) into a bag with the twin's topics")
+    im.add_argument("dataset", help="folder with meta.yaml and observations.csv")
+    im.add_argument("--out", required=True, help="bag directory bags/NAME")
+
+    v = sub.add_parser("view", help="convert a bag (or a results .npz with trajectories) to a Rerun recording")
+    v.add_argument("source", help="bags/NAME or results.npz")
+    v.add_argument("--out", help="recording file (default: NAME.rrd next to the source)")
+    v.add_argument("--spawn", action="store_true", help="also open a Rerun viewer")
+    v.add_argument("--point", type=int, default=0, help="results .npz: grid point index")
+    v.add_argument("--run", type=int, default=0, help="results .npz: Monte Carlo run")
     return p
 
 
@@ -227,6 +274,18 @@ def main(argv=None) -> int:
                     print(f"{topic:<40} {n}")
                 for name, meta in info["metadata"].items():
                     print(f"metadata {name}: {', '.join(sorted(meta))}")
+        elif args.verb == "replay":
+            res = replay(args.bag, args.rate, args.loop, args.topics, args.wait_for_subscribers)
+            print(f"replayed {res['messages']} messages on {res['topics']} topics in {res['wall_s']:.2f} s; timing error "
+                  f"p50 {res.get('err_p50_ms', 0):.3f} ms, p99 {res.get('err_p99_ms', 0):.3f} ms")
+        elif args.verb == "import":
+            res = import_measured(args.dataset, args.out)
+            n = sum(res["counts"].values())
+            print(f"wrote {res['path']}: {res['kind']} data of {res['robots']} robot(s), {len(res['trials'])} trial(s), "
+                  f"{n} messages on {len(res['counts'])} topics")
+        elif args.verb == "view":
+            res = view(args.source, args.out, args.spawn, args.point, args.run)
+            print(f"wrote {res['path']}: {res['robots']} robots x {res['steps']} samples in {res['total_s']:.2f} s")
         return 0
     except ConfigError as exc:
         print(f"kilobot-twin: error: {exc}", file=sys.stderr)

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-EXECUTABLES = ("robot", "swarm", "world", "analysis", "recorder", "kilobot-twin")
+EXECUTABLES = ("robot", "swarm", "world", "analysis", "recorder", "replay", "kilobot-twin")
 
 
 def test_colcon_build_installs_executables_and_ament_index(tmp_path):
