@@ -64,6 +64,20 @@ def reproduce(out: str = "out/reproduce", preset: str = "paper", quick: bool = F
     return _reproduce(out, preset, quick, seed, workers, progress)
 
 
+def synth(kind: str, hidden: str, out: str, robots: int | None = None, trials: int | None = None, seed: int = 0) -> dict:
+    """Write a measured-v1 dataset from the twin with the named effects hidden in it (+ truth.json)."""
+    from .gap.synth import synth as _synth
+
+    return _synth(kind, hidden, out, robots, trials, seed)
+
+
+def gap(data: list[str], out: str, model: str | None = None, seed: int = 0, quiet: bool = False) -> dict:
+    """Hold the twin against measured data: detect, name, add, show the gap shrink."""
+    from .gap.workflow import GapSettings, run_gap
+
+    return run_gap(data, out, model, GapSettings(seed=seed), log=(lambda *a: None) if quiet else print)
+
+
 def demo(out: str = "out/demo", quick: bool = False, workers: int | None = None, progress: bool = True) -> dict:
     """The main job: a phototaxis campaign on embedded defaults, with a plot and a summary."""
     from .demo import run_demo
@@ -172,6 +186,21 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--workers", type=_positive_int)
     r.add_argument("--no-progress", action="store_true")
 
+    sy = sub.add_parser("synth", help="write a measured dataset from the twin with hidden effects (+ truth.json)")
+    sy.add_argument("--kind", required=True, choices=["motion", "light_sweep", "blink"])
+    sy.add_argument("--hidden", default="none", help="none, or a comma list of effects (see kilobot_twin/gap/synth.py)")
+    sy.add_argument("--robots", type=_positive_int)
+    sy.add_argument("--trials", type=_positive_int)
+    sy.add_argument("--seed", type=int, default=0)
+    sy.add_argument("--out", required=True)
+
+    g = sub.add_parser("gap", help="twin vs measurement: find the disagreement, name the effect, show the gap shrink")
+    g.add_argument("data", nargs="+", help="measured datasets (measured-v1 folders) or bags")
+    g.add_argument("--model", help="base model (traits YAML with robots:); default: the paper's Eq. 4 fitted to the data")
+    g.add_argument("--out", required=True)
+    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--quiet", action="store_true")
+
     t = sub.add_parser("traits", help="draw or check robot traits files")
     tsub = t.add_subparsers(dest="traits_verb", required=True, metavar="ACTION", parser_class=_Parser)
     td = tsub.add_parser("draw", help="draw a swarm from a population file and save it per robot")
@@ -251,6 +280,14 @@ def main(argv=None) -> int:
         elif args.verb == "reproduce":
             doc = reproduce(args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress)
             print(f"{doc['met']} of {doc['total']} checks met in {doc['elapsed_s']:.0f} s; report: {args.out}/report.md")
+        elif args.verb == "synth":
+            truth = synth(args.kind, args.hidden, args.out, args.robots, args.trials, args.seed)
+            print(f"wrote {args.out} ({truth['kind']}, hidden: {', '.join(truth['hidden']) or 'none'})")
+        elif args.verb == "gap":
+            rep = gap(args.data, args.out, args.model, args.seed, args.quiet)
+            print(f"named: {', '.join(rep['named_effects']) or 'none'}; unexplained: {rep['unexplained']}"
+                  + (f" ({', '.join(rep['unexplained_signals'])})" if rep["unexplained_signals"] else ""))
+            print(f"gap {rep['gap_before']['value']:.2f} -> {rep['gap_after']['value']:.2f}; report: {args.out}/report.md")
         elif args.verb == "traits":
             if args.traits_verb == "draw":
                 print(f"wrote {draw_traits(args.population, args.out, args.seed, args.robots)}")
