@@ -113,6 +113,7 @@ class Effect:
     kind = ""
     params: tuple = ()
     explains: tuple = ()  # summary components it changes
+    extends: tuple = ()  # effects this one contains as a special case (nested models)
 
     def fit(self, model: TwinModel, meas: dict, ref: dict, resim=None) -> TwinModel:  # pragma: no cover
         """Fit on ``meas`` (summaries of some trials) given ``ref`` (summaries of the current model
@@ -136,6 +137,7 @@ class BiasDrift(Effect):
     """Heading bias that changes linearly from trial to trial (decalibration): a line per robot."""
 
     name, kind, params, explains = "bias_drift", "motion", ("heading_bias", "bias_drift"), ("turn_rate",)
+    extends = ("heading_bias",)  # a line per robot contains its mean
 
     def fit(self, model, meas, ref, resim=None):
         b = _bias(meas["turn_rate"], model)  # (K', N)

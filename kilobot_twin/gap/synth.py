@@ -82,7 +82,7 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     measured.write(out, meta, tracks)
     truth = {"kind": kind, "hidden": effects, "seed": seed, "observation": asdict(obs), **truth_extra,
              "descriptions": {h: HIDDEN[h][1] for h in effects},
-             "robots": {int(i): {k: float(v[j]) for k, v in swarm.values.items()} for j, i in enumerate(ids)}}
+             "robots": {str(int(i)): {k: float(v[j]) for k, v in swarm.values.items()} for j, i in enumerate(ids)}}
     (out / "truth.json").write_text(json.dumps(truth, indent=1))
     return truth
 

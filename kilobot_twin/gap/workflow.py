@@ -308,6 +308,12 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         gain = scores[best]
         boot_gain = _boot(rng, lambda i: np.nansum(gain[i]), n, gs.boot)
         ci_gain = np.percentile(boot_gain, [2.5, 97.5])
+        # The runner-up to beat: the best other candidate, except models that merely extend
+        # the winner (they contain it, so they fit at least as well in sample; when they score
+        # lower held-out, the simpler winner is named). An extension that wins must still beat
+        # the model it extends clearly.
+        rivals = [k for k in order[1:] if best not in E.LIBRARY[k].extends]
+        order = [best] + rivals
         if len(order) > 1:
             diff = gain - scores[order[1]]
             boot_diff = _boot(rng, lambda i: np.nansum(diff[i]), n, gs.boot)

@@ -1,0 +1,73 @@
+"""measured-v1: validation with file, line and column; gaps stay gaps."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from kilobot_twin import measured
+from kilobot_twin.errors import ConfigError
+
+META = """format: kilobot-twin/measured-v1
+kind: motion
+robots: [0, 1]
+trials: 1
+dt_s: 0.1
+duration_s: 0.3
+behavior: straight
+nominal_speed_m_s: 0.0113
+"""
+CSV = "trial,robot_id,t_s,x_m,y_m\n0,0,0.0,0,0\n0,1,0.0,1,0\n0,0,0.1,0.001,0\n0,0,0.3,0.003,0\n"
+
+
+def make(tmp_path, meta=META, csv=CSV):
+    d = tmp_path / "ds"
+    d.mkdir(exist_ok=True)
+    (d / "meta.yaml").write_text(meta)
+    (d / "observations.csv").write_text(csv)
+    return d
+
+
+def test_load_keeps_gaps_and_interleaving(tmp_path):
+    ds = measured.load(make(tmp_path))
+    tr = ds.track(0, 0)
+    assert tr.t_s.tolist() == [0.0, 0.1, 0.3]  # the missing 0.2 stays missing
+    _, x = ds.grid("x_m")
+    assert x.shape == (1, 2, 4) and np.isnan(x[0, 0, 2]) and x[0, 0, 3] == 0.003
+    assert np.isnan(x[0, 1, 1:]).all()
+
+
+@pytest.mark.parametrize("csv, where", [
+    ("trial,robot_id,t_s,x_m\n0,0,0,0\n", "observations.csv:1"),                     # missing column y_m
+    (CSV + "0,0,0.4,abc,0\n", "observations.csv:6: column x_m"),                    # non-numeric
+    (CSV + "0,7,0.4,0,0\n", "observations.csv:6: column robot_id"),                 # robot not in robots
+    (CSV + "0,0,0.3,0,0\n", "observations.csv:6: column t_s"),                      # duplicated sample
+    (CSV + "0,0,0.2,0,0\n", "observations.csv:6: column t_s"),                      # backwards in time
+    (CSV + "0,0,0.4,nan,0\n", "observations.csv:6: column x_m"),                    # NaN
+    (CSV + "1,0,0.4,0,0\n", "observations.csv:6: column trial"),                    # trial out of range
+])
+def test_bad_rows_name_file_line_column(tmp_path, csv, where):
+    with pytest.raises(ConfigError) as e:
+        measured.load(make(tmp_path, csv=csv))
+    assert where in str(e.value) and "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("meta, field", [
+    (META.replace("kind: motion", "kind: video"), "kind"),
+    (META.replace("trials: 1", "trials: zero"), "trials"),
+    (META.replace("behavior: straight\n", ""), "behavior"),
+    (META.replace("measured-v1", "measured-v9"), "format"),
+])
+def test_bad_meta_names_the_key(tmp_path, meta, field):
+    with pytest.raises(ConfigError) as e:
+        measured.load(make(tmp_path, meta=meta))
+    assert f"meta.yaml: {field}" in str(e.value)
+
+
+def test_cli_gap_on_bad_dataset_exits_2_with_one_line(tmp_path):
+    d = make(tmp_path, csv=CSV + "0,9,0.4,0,0\n")
+    p = subprocess.run([sys.executable, "-m", "kilobot_twin", "gap", str(d), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True)
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and "robot_id" in p.stderr
