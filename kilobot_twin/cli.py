@@ -270,7 +270,11 @@ def main(argv=None) -> int:
                   f"{len(res['swarm'])} robot(s), {meta['robot_steps'] / meta['elapsed_s'] / 1e6:.1f} M robot-steps/s")
         elif args.verb == "demo":
             res = demo(args.out, args.quick, args.workers, not args.no_progress)
-            print(json.dumps(res["summary"], indent=2))
+            for p, s in res["summary"]["per_p_right"].items():
+                print(f"{p}: cost at bias 0 {s['cost_at_zero_bias_m']:.2f} m, best {s['best_cost_m']:.2f} m at "
+                      f"{s['best_bias']:+.3f}, R_acc {s['R_acc']}")
+            if res.get("twin"):
+                print(f"twin bag: {res['twin']['bag']}\nrerun recording: {res['twin']['rrd']} (open: rerun {res['twin']['rrd']})")
             print(f"plot: {res['plot']}\nsummary: {res['summary_path']}")
         elif args.verb == "experiment":
             o = experiment(args.name, args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress)

@@ -1,7 +1,11 @@
-"""The main job on embedded defaults: a phototaxis campaign over heading bias and P_R.
+"""The main job on embedded defaults: the twin demo.
 
-It writes ``results.npz`` (+ Parquet), ``phototaxis.png`` (the paper's Fig. 5 layout) and
-``summary.json`` / ``summary.md`` with the headline numbers per P_R.
+1. The ROS 2 twin: 20 individual Kilobots doing phototaxis as ROS nodes (world, swarm,
+   analysis, recorder processes, lockstep time), recorded to ``bags/twin`` (rosbag2 MCAP);
+2. that bag as a Rerun recording ``twin.rrd`` (open it with ``rerun twin.rrd``);
+3. the paper's phototaxis campaign (Fig. 5) on the batch engine: ``results.npz`` (+ Parquet),
+   ``phototaxis.png`` and the headline numbers per P_R;
+4. ``summary.json`` / ``summary.md`` tying them together.
 """
 
 from __future__ import annotations
@@ -19,25 +23,50 @@ from .plots import cost_vs_bias
 #: The demo's configuration (what ``config/demo_phototaxis.yaml`` also holds).
 DEMO_CONFIG = {
     "scenario": {"preset": "paper", "behavior": {"kind": "phototaxis"}},
-    "swarm": {"population": {"n": 41, "heading_bias": {"dist": "linspace", "low": -0.04, "high": 0.04}}},
+    # Wheel imbalance +-0.4 = the paper's bias axis +-0.04 under the paper preset (scale 10).
+    "swarm": {"population": {"n": 41, "heading_bias": {"dist": "linspace", "low": -0.4, "high": 0.4}}},
     "seed": 2023,
-    "runs": 100,
+    "runs": 30,
     "grid": {"behavior.p_right": [0.25, 0.5, 1.0]},
 }
 
 
+TWIN = {"scenario": "phototaxis", "robots": 20, "duration": 120.0, "seed": 2023, "mode": "lockstep"}
+
+
+def run_twin_and_view(out: Path, quick: bool = False, echo=print) -> dict:
+    """Run the ROS 2 twin into a bag, convert the bag to a Rerun recording; returns both reports."""
+    from .ros.launcher import run_twin
+    from .viewer import load_source
+    from .viewer.rerun_view import write_rrd
+
+    cfg = dict(TWIN, duration=30.0 if quick else TWIN["duration"])
+    bag = out / "bags" / "twin"
+    echo(f"twin: {cfg['robots']} robots, {cfg['scenario']}, {cfg['duration']:g} s ({cfg['mode']}) -> {bag}")
+    report = run_twin(cfg["scenario"], cfg["robots"], cfg["duration"], cfg["seed"], cfg["mode"], None, str(bag),
+                      echo=echo)
+    echo(report.text())
+    rec = load_source(str(bag))
+    view = write_rrd(rec, str(out / "twin.rrd"))
+    echo(f"rerun recording: {out / 'twin.rrd'} ({rec.n_robots} robots x {rec.n_steps} samples)")
+    return {"bag": str(bag), "rrd": str(out / "twin.rrd"), "run": report, "view": view, "config": cfg}
+
+
 def run_demo(out: str | Path = "out/demo", quick: bool = False, workers: int | None = None,
-             progress: bool = True) -> dict:
+             progress: bool = True, twin: bool = True) -> dict:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    twin_res = run_twin_and_view(out, quick) if twin else None
     doc = json.loads(json.dumps(DEMO_CONFIG))
     if quick:
-        doc["runs"] = 20
+        doc["runs"] = 10
     cfg = config_from_dict(doc, source="demo")
     result = run_campaign(cfg.campaign(), out=out / "results.npz", workers=workers, progress=progress,
                           parquet=True, desc="phototaxis demo")
+    from .core.scenario import bias_axis_scale
+
     p_rights = cfg.grid["behavior.p_right"]
-    bias = cfg.swarm.heading_bias
+    bias = cfg.swarm.heading_bias / bias_axis_scale(doc["scenario"].get("preset"))  # on the paper's axis
     cost = result["summary"]["cost_m"]
     summary = phototaxis_summary(bias, cost, p_rights)
     plot = cost_vs_bias(bias, cost, [f"P_R = {p}" for p in p_rights], out / "phototaxis.png",
@@ -50,9 +79,21 @@ def run_demo(out: str | Path = "out/demo", quick: bool = False, workers: int | N
         "robot_steps_per_s": round(meta["robot_steps"] / meta["elapsed_s"]),
         "per_p_right": summary,
     }
+    if twin_res is not None:
+        rep = twin_res["run"]
+        summary_doc["twin"] = {"bag": twin_res["bag"], "rerun": twin_res["rrd"], **twin_res["config"],
+                               "wall_s": rep.wall_s, "real_time_factor": rep.real_time_factor,
+                               "messages": int(sum(rep.counts.values())) if getattr(rep, "counts", None) else None}
     (out / "summary.json").write_text(json.dumps(summary_doc, indent=2))
-    lines = [
-        "# Phototaxis demo",
+    lines = ["# kilobot_twin demo", ""]
+    if twin_res is not None:
+        t = summary_doc["twin"]
+        lines += [f"## The ROS 2 twin", "",
+                  f"{t['robots']} individual Kilobots doing phototaxis for {t['duration']:g} s as ROS 2 nodes ({t['mode']}); "
+                  f"bag `{t['bag']}` (rosbag2 MCAP), Rerun recording `{t['rerun']}` (`rerun {t['rerun']}`).", "",
+                  "```", twin_res["run"].text(), "```", ""]
+    lines += [
+        "## Phototaxis campaign (paper Fig. 5, batch engine)",
         "",
         f"{len(bias)} robots (heading bias {bias.min():+.3f} .. {bias.max():+.3f}) x {cfg.runs} Monte Carlo runs, "
         f"seed {cfg.seed}; {meta['elapsed_s']:.1f} s at {meta['robot_steps'] / meta['elapsed_s'] / 1e6:.1f} M robot-steps/s.",
@@ -67,5 +108,5 @@ def run_demo(out: str | Path = "out/demo", quick: bool = False, workers: int | N
                      f"[{s['R_acc'][0]:+.3f}, {s['R_acc'][1]:+.3f}] | {s['N_acc']} |")
     lines += ["", "![cost vs bias](phototaxis.png)", ""]
     (out / "summary.md").write_text("\n".join(lines))
-    return {"summary": summary_doc, "plot": str(plot), "summary_path": str(out / "summary.md"),
+    return {"summary": summary_doc, "plot": str(plot), "summary_path": str(out / "summary.md"), "twin": twin_res,
             "results": str(out / "results.npz"), "cost": cost, "bias": np.asarray(bias)}
