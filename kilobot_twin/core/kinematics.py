@@ -99,8 +99,3 @@ def circle_radius_m(heading_bias: float, wheel_separation_m: float = C.WHEEL_SEP
     From ``v = v0`` and ``omega = -b v0 / L``: ``r = v / |omega| = L / |b|`` (independent of speed).
     """
     return wheel_separation_m / abs(heading_bias)
-
-
-def wrap_angle(theta):
-    """Wrap angles to [-pi, pi)."""
-    return (np.asarray(theta) + np.pi) % (2 * np.pi) - np.pi

@@ -89,12 +89,6 @@ def uniform(keys: np.ndarray, counter: int) -> np.ndarray:
     return (z >> _S11).astype(np.float64) * _TO_UNIT
 
 
-def uniform_open(keys: np.ndarray, counter: int) -> np.ndarray:
-    """Uniform floats in (0, 1) (never 0, safe for logarithms)."""
-    z = mix64(keys + _offset(counter))
-    return ((z >> _S11).astype(np.float64) + 0.5) * _TO_UNIT
-
-
 def normal_pair(keys: np.ndarray, counter: int) -> tuple[np.ndarray, np.ndarray]:
     """Two independent standard normals per key and counter (Box-Muller).
 
@@ -116,4 +110,3 @@ def generator(seed: int, *spawn_key: int) -> np.random.Generator:
 
 # Well-known spawn keys for one-off draws.
 SPAWN_POPULATION = 1
-SPAWN_START_POSES = 2

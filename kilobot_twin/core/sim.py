@@ -46,11 +46,6 @@ class SimState:
     def shape(self):
         return self.x.shape
 
-    def copy(self) -> "SimState":
-        import copy
-
-        return copy.deepcopy(self)
-
 
 def start_poses(scenario: Scenario, seed: int, runs, robot_ids):
     """Start (x, y, theta), each (R, N), keyed by (seed, run, robot) or (seed, run) if shared."""
