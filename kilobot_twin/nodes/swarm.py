@@ -128,12 +128,10 @@ class SwarmNode(Node):
             for r in self.robots:
                 r.on_clock(ns)
         elif ns == 0 and self.model.step_index == 0 and self.robots[0].published == 0:
-            for r in self.robots:
-                r.publish_sample(0)
+            self._publish_all(0)
         elif ns == convert.step_stamp_ns(self.model.step_index + 1, self.model.scenario.dt_s):
             self.model.step()
-            for r in self.robots:
-                r.publish_sample(ns)
+            self._publish_all(ns)
         else:
             return
         self.steps += 1
@@ -141,6 +139,11 @@ class SwarmNode(Node):
             self.get_logger().error(f"crash_after_steps={self.crash_after_steps}: simulated robot crash")
             sys.stderr.flush()
             os._exit(70)
+
+    def _publish_all(self, stamp_ns) -> None:
+        """Every robot's messages of the current step, serialized in one vectorised call."""
+        for r, msgs in zip(self.robots, zip(*self.model.serialized(stamp_ns))):
+            r.publish_serialized(*msgs)
 
     # --- report ------------------------------------------------------------------------------------------------
 
