@@ -146,7 +146,9 @@ class SwarmNode(Node):
         time keeps up with the wall clock; those samples carry their publication time, and
         ``late_steps`` in the stats counts them.
         """
-        due = self._wall_stamp() // convert.step_stamp_ns(1, self.model.scenario.dt_s)
+        # Never beyond the scenario's last step: the world's 'done' may arrive late.
+        due = min(self._wall_stamp() // convert.step_stamp_ns(1, self.model.scenario.dt_s),
+                  self.model.scenario.n_steps)
         behind = due - self.model.step_index
         if behind > 1:
             self.late_steps += behind - 1
