@@ -66,6 +66,8 @@ class AnalysisNode(Node):
         self.led: dict[int, int] = {}
         self.ticks: dict[int, float] = {}
         self.cells: set[int] = set()
+        self._visited_x: list[float] = []
+        self._visited_y: list[float] = []
         self.subscribed: set[str] = set()
         self.pubs = {m: self.create_publisher(Float64, f"~/{m}", 10) for m in METRICS}
         self.pub_robots = self.create_publisher(UInt32, "~/robots", 10)
@@ -84,21 +86,29 @@ class AnalysisNode(Node):
                 continue
             self.subscribed.add(topic)
             rid, kind = int(m.group(1)), m.group(2)
+            # Raw subscriptions: the few numbers needed are read from the CDR bytes directly
+            # (no message object per sample; a swarm sends thousands per second).
             if kind == "pose":
-                self.create_subscription(PoseStamped, topic, lambda msg, r=rid: self._on_pose(r, msg), qos.DATA)
+                self.create_subscription(PoseStamped, topic, lambda data, r=rid: self._on_pose(r, data), qos.DATA,
+                                         raw=True)
             elif kind == "led":
-                self.create_subscription(ColorRGBA, topic, lambda msg, r=rid: self.led.__setitem__(
-                    r, convert.led_from_color(msg)), qos.DATA)
+                self.create_subscription(ColorRGBA, topic, lambda data, r=rid: self.led.__setitem__(
+                    r, convert.led_from_cdr(data)), qos.DATA, raw=True)
             else:
-                self.create_subscription(TimeReference, topic, lambda msg, r=rid: self.ticks.__setitem__(
-                    r, convert.ticks_from_clock(msg, self.scenario.tick_hz)), qos.DATA)
+                self.create_subscription(TimeReference, topic, lambda data, r=rid: self.ticks.__setitem__(
+                    r, convert.ticks_from_clock_cdr(data, self.scenario.tick_hz)), qos.DATA, raw=True)
 
-    def _on_pose(self, rid: int, msg: PoseStamped) -> None:
-        x, y, _ = convert.pose_to_xytheta(msg)
+    def _on_pose(self, rid: int, data: bytes) -> None:
+        x, y = convert.pose_xy_from_cdr(data)
         self.x[rid], self.y[rid] = x, y
-        self.cells.add(int(self.scenario.arena.cell_index(x, y)))
+        self._visited_x.append(x)  # coverage cells are computed in bulk at publication
+        self._visited_y.append(y)
 
     def publish_metrics(self) -> dict:
+        if self._visited_x:
+            cells = self.scenario.arena.cell_index(np.array(self._visited_x), np.array(self._visited_y))
+            self.cells.update(np.unique(cells).tolist())
+            self._visited_x, self._visited_y = [], []
         ids = sorted(self.x)
         m = swarm_metrics([self.x[i] for i in ids], [self.y[i] for i in ids], list(self.led.values()),
                           list(self.ticks.values()), self.scenario, len(self.cells))

@@ -3,7 +3,11 @@
 Parameters: ``out`` (bag directory, default ``bags/<UTC time>``), ``topics`` (comma-separated
 prefixes, default ``/kilobot_,/world,/analysis,/clock``), ``discovery_period_s`` (how often
 the graph is searched for new topics: robots that join late are picked up),
-``chunk_bytes``, ``compression`` (zstd, lz4, none).
+``chunk_bytes``, ``compression`` (zstd, lz4, none), ``ack_every``.
+
+``~/recorded`` (std_msgs/UInt64): robot data messages (``/kilobot_<id>/{pose,light,led,clock}``)
+written so far, published every ``ack_every`` of them and at 20 Hz when it changed; the world
+paces lockstep runs with it so that no robot message is overwritten before it is recorded.
 
 Subscriptions are raw: the bytes received are written as they are (no deserialise /
 serialise round trip). Transient-local publishers (traits, the world's scenario and light
@@ -18,6 +22,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import re
 import time
 from datetime import datetime, timezone
 
@@ -26,15 +31,17 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from std_msgs.msg import String
+from std_msgs.msg import String, UInt64
 
 from .. import __version__
 from ..errors import ConfigError
-from ..ros import params
+from ..ros import params, qos
 from ..ros.bag import DEFAULT_CHUNK_BYTES, BagWriter, qos_yaml
 from ..ros.executors import make_executor, spin
 
 PROG = "kilobot-twin recorder"
+#: Robot data topics: what the recorder acknowledges on ``~/recorded`` (the world's back-pressure).
+ROBOT_DATA = re.compile(r"^/kilobot_\d+/(pose|light|led|clock)$")
 
 
 def message_class(type_name: str):
@@ -63,6 +70,13 @@ class RecorderNode(Node):
         self.world_doc: dict | None = None
         self.traits: dict[int, dict] = {}
         self.joined: list[tuple[str, int]] = []
+        # Acknowledgements: robot data messages written, published every `ack_every` messages and
+        # at 20 Hz when it changed (the world lets lockstep run ahead of it by a bounded lag).
+        self.ack_every = params.integer(self, "ack_every", 100, minimum=1)
+        self.robot_messages = 0
+        self._acked = 0
+        self.pub_recorded = self.create_publisher(UInt64, "~/recorded", qos.CLOCK)
+        self.create_timer(0.05, self._ack)
         self.create_timer(period, self.discover)
         self.discover()
 
@@ -87,14 +101,14 @@ class RecorderNode(Node):
                 self.get_logger().warning(f"{topic}: type {type_name} not installed, not recorded")
                 self.channels[topic] = -1
                 continue
-            qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1 if latched else 1000,
-                             reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+            profile = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1 if latched else 1000,
+                                 reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
+                                 durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
             cid = self.bag.add_topic(topic, type_name, qos_yaml(2 if best_effort else 1, 1 if latched else 2,
-                                                                  qos.depth))
+                                                                  profile.depth))
             self.channels[topic] = cid
             self.joined.append((topic, time.time_ns()))
-            self.create_subscription(cls, topic, self._callback(cid, topic), qos, raw=True)
+            self.create_subscription(cls, topic, self._callback(cid, topic), profile, raw=True)
 
     def _callback(self, cid: int, topic: str):
         bag = self.bag
@@ -105,12 +119,27 @@ class RecorderNode(Node):
         def record(data: bytes) -> None:
             bag.write(cid, data, time_ns())
 
+        if ROBOT_DATA.match(topic):
+            ack_every = self.ack_every
+
+            def record_robot(data: bytes) -> None:
+                bag.write(cid, data, time_ns())
+                self.robot_messages += 1
+                if self.robot_messages % ack_every == 0:
+                    self._ack()
+            return record_robot
+
         if topic.endswith("/traits") or topic.endswith("/scenario"):
             def record_document(data: bytes) -> None:
                 record(data)
                 self._document(topic, data)
             return record_document
         return record
+
+    def _ack(self) -> None:
+        if self.robot_messages != self._acked:
+            self._acked = self.robot_messages
+            self.pub_recorded.publish(UInt64(data=self._acked))
 
     def _document(self, topic: str, data: bytes) -> None:
         try:

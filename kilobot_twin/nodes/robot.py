@@ -77,7 +77,6 @@ class RobotNode(Node):
         self.pub_traits = self.create_publisher(String, "traits", qos.LATCHED)
         self.pub_traits.publish(convert.traits_to_msg(self.robot_id, self.traits,
                                                       params.behavior_to_values(self.behavior), self.seed, self.run))
-        self.msgs = convert.RobotMessages()
         self.model: SwarmModel | None = None
         self.col = 0
         self.scenario = None
@@ -130,12 +129,16 @@ class RobotNode(Node):
     # --- outputs --------------------------------------------------------------------------------
 
     def publish_sample(self, stamp_ns: int) -> None:
-        m = self.msgs.fill(self.model.sample(self.col, stamp_ns))
+        """Publish this robot's state (serialized CDR, see :func:`convert.robot_cdr`)."""
+        pose, light, led, clock = self.model.serialized(stamp_ns, slice(self.col, self.col + 1))
+        self.publish_serialized(pose[0], light[0], led[0], clock[0])
+
+    def publish_serialized(self, pose: bytes, light: bytes, led: bytes, clock: bytes) -> None:
         # Pose last: the world takes a pose as "this robot has published this step".
-        self.pub_light.publish(m.light)
-        self.pub_led.publish(m.led)
-        self.pub_clock.publish(m.clock)
-        self.pub_pose.publish(m.pose)
+        self.pub_light.publish(light)
+        self.pub_led.publish(led)
+        self.pub_clock.publish(clock)
+        self.pub_pose.publish(pose)
         self.published += 1
 
     def _wall_stamp(self) -> int:

@@ -2,7 +2,9 @@
 
 Parameters: ``robots`` (N), ``traits_file`` (YAML with ``robots:`` or ``population:``; empty:
 draw from the default population of :mod:`kilobot_twin.ros.scenarios`), ``seed``, ``run``,
-``trial``, ``world``, ``batched`` (lockstep: step all robots in one vectorised core call),
+``trial``, ``world``, ``batched`` (step all robots in one vectorised core call: in lockstep on
+each /clock step, in realtime on one wall timer of period ``dt_s``; Kuramoto coupling between
+the process's robots is then exact in both modes),
 ``stats_file`` (JSON written at exit: messages published, CPU, memory),
 ``crash_after_steps`` (fault injection for tests: the process dies after that many steps).
 
@@ -68,6 +70,9 @@ class SwarmNode(Node):
         self.world_ready = Future()
         self.mode = None
         self.steps = 0
+        self.rt_timer = None
+        self.start_wall_ns = 0
+        self.late_steps = 0
         self.t_start = time.monotonic()
         self.cpu_start = time.process_time()
         self.rss_before_robots = _rss_bytes()
@@ -93,7 +98,7 @@ class SwarmNode(Node):
         common = [("seed", self.seed), ("run", self.run), ("trial", self.trial), ("world", self.world),
                   ("swarm_size", max(self.n_robots, int(doc.get("robots", 0))))]
         common += params.behavior_overrides(behavior)
-        if self.mode == "lockstep" and self.batched:
+        if self.batched:
             self.model = SwarmModel(scenario, self.traits, self.seed, self.run, self.trial,
                                     max(self.n_robots, int(doc.get("robots", 0))))
         for col, rid in enumerate(self.traits.ids):
@@ -114,11 +119,42 @@ class SwarmNode(Node):
 
     def _on_state(self, msg: String) -> None:
         doc = json.loads(msg.data)
-        for r in self.robots:
-            r.set_state(doc)
-        if doc.get("state") == "running":
+        state = doc.get("state")
+        if self.model is None or self.mode != "realtime":
+            for r in self.robots:
+                r.set_state(doc)
+        elif state == "running" and self.rt_timer is None and not self.robots[0].done:
+            self.start_wall_ns = int(doc["start_wall_ns"])
+            self._publish_all(self._wall_stamp())
+            self.rt_timer = self.create_timer(self.model.scenario.dt_s, self._on_realtime_timer)
+        elif state == "done":
+            if self.rt_timer is not None:
+                self.rt_timer.cancel()
+            for r in self.robots:
+                r.done = True
+        if state == "running":
             self.t_start = time.monotonic()
             self.cpu_start = time.process_time()
+
+    def _wall_stamp(self) -> int:
+        return max(0, time.time_ns() - self.start_wall_ns)
+
+    def _on_realtime_timer(self) -> None:
+        """Realtime, batched: step every robot once per period of wall time since the start.
+
+        A late timer (a busy process) takes the missed steps at once, so the swarm's simulated
+        time keeps up with the wall clock; those samples carry their publication time, and
+        ``late_steps`` in the stats counts them.
+        """
+        # Never beyond the scenario's last step: the world's 'done' may arrive late.
+        due = min(self._wall_stamp() // convert.step_stamp_ns(1, self.model.scenario.dt_s),
+                  self.model.scenario.n_steps)
+        behind = due - self.model.step_index
+        if behind > 1:
+            self.late_steps += behind - 1
+        for _ in range(max(0, behind)):
+            self.model.step()
+            self._publish_all(self._wall_stamp())
 
     def _on_clock(self, msg: Clock) -> None:
         if not self.robots or self.mode != "lockstep":
@@ -128,12 +164,10 @@ class SwarmNode(Node):
             for r in self.robots:
                 r.on_clock(ns)
         elif ns == 0 and self.model.step_index == 0 and self.robots[0].published == 0:
-            for r in self.robots:
-                r.publish_sample(0)
+            self._publish_all(0)
         elif ns == convert.step_stamp_ns(self.model.step_index + 1, self.model.scenario.dt_s):
             self.model.step()
-            for r in self.robots:
-                r.publish_sample(ns)
+            self._publish_all(ns)
         else:
             return
         self.steps += 1
@@ -141,6 +175,11 @@ class SwarmNode(Node):
             self.get_logger().error(f"crash_after_steps={self.crash_after_steps}: simulated robot crash")
             sys.stderr.flush()
             os._exit(70)
+
+    def _publish_all(self, stamp_ns) -> None:
+        """Every robot's messages of the current step, serialized in one vectorised call."""
+        for r, msgs in zip(self.robots, zip(*self.model.serialized(stamp_ns))):
+            r.publish_serialized(*msgs)
 
     # --- report ------------------------------------------------------------------------------------------------
 
@@ -153,7 +192,7 @@ class SwarmNode(Node):
             "topics_per_robot": ["pose", "light", "led", "clock"],
             "wall_s": time.monotonic() - self.t_start, "cpu_s": time.process_time() - self.cpu_start,
             "rss_bytes": _rss_bytes(), "rss_before_robots_bytes": self.rss_before_robots,
-            "rss_after_robots_bytes": self.rss_after_robots,
+            "rss_after_robots_bytes": self.rss_after_robots, "late_steps": self.late_steps,
         }
 
     def write_stats(self) -> None:

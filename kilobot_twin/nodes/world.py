@@ -15,8 +15,12 @@ Start gate: the world waits until ``robots`` robots are on the graph and every n
 ``wait_topics`` (default ``pose,light,led,clock``), so that a recording holds every message,
 then ``settle_s`` more. Then:
 
-- ``lockstep``: publish /clock for step k, wait until every robot has published its pose for
-  step k, repeat; the result equals the batch engine's;
+- ``lockstep``: publish /clock for step k once every robot has published its pose for step
+  ``k - window_steps`` (``window_steps=1``: strictly one step at a time; a window hides the
+  round trip, robots still take the steps in order, so the result equals the batch engine's
+  either way) and, when the recorder is awaited, once the recorder acknowledges (on
+  ``/recorder/recorded``) every robot message up to step ``k - recorder_lag_steps``; the run
+  ends when the recorder holds every message (or made no progress for ``ack_timeout_s``);
 - ``realtime``: stamp the start, publish /clock at ``clock_hz`` and stop after the duration.
 """
 
@@ -35,7 +39,7 @@ from rclpy.task import Future
 from geometry_msgs.msg import PoseStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image
-from std_msgs.msg import String
+from std_msgs.msg import String, UInt64
 
 from ..core.scenario import Scenario, scenario_from_dict
 from ..core.traits import load_yaml
@@ -68,6 +72,10 @@ class WorldNode(Node):
         self.clock_hz = params.number(self, "clock_hz", 10.0, minimum=0.0, strict=True)
         self.linger_s = params.number(self, "linger_s", 0.5, minimum=0.0)
         self.stats_file = params.text(self, "stats_file", "")
+        self.window_steps = params.integer(self, "window_steps", 8, minimum=1)
+        self.recorder_lag_steps = params.integer(self, "recorder_lag_steps", 60, minimum=1)
+        self.ack_timeout_s = params.number(self, "ack_timeout_s", 5.0, minimum=0.0, strict=True)
+        self.await_recorder = "recorder" in self.wait_for_nodes and self.mode == "lockstep"
         self.scenario = self._scenario(name, path, duration)
         self.n_steps = self.scenario.n_steps
 
@@ -75,6 +83,8 @@ class WorldNode(Node):
         self.pub_state = self.create_publisher(String, "~/state", qos.LATCHED)
         self.pub_field = self.create_publisher(Image, "~/light_field", qos.LATCHED)
         self.pub_clock = self.create_publisher(Clock, "/clock", qos.CLOCK)
+        if self.await_recorder:
+            self.create_subscription(UInt64, "/recorder/recorded", self._on_recorded, qos.CLOCK)
         self.pub_doc.publish(convert.json_msg(world_document(self.scenario, self.seed, self.run, self.n_robots,
                                                              self.mode)))
         self._publish_state("waiting")
@@ -84,8 +94,13 @@ class WorldNode(Node):
 
         self.finished = Future()
         self.robots: dict[int, str] = {}  # id -> pose topic
-        self.step = -1
-        self.reported: set[int] = set()
+        self.step = -1  # last step published on /clock
+        self.complete = -1  # last step every robot has published its pose for
+        self.reported: dict[int, int] = {}  # step -> poses received
+        self.recorded = 0  # robot messages the recorder acknowledged
+        self._ack_progress_at = time.monotonic()
+        self._ack_warned = False
+        self._finish_timer = None
         self.start_wall_ns = 0
         self.end_wall_ns = 0
         self._gate_since = None
@@ -166,6 +181,7 @@ class WorldNode(Node):
 
     def _start(self) -> None:
         self.start_wall_ns = time.time_ns()
+        self._ack_progress_at = time.monotonic()
         self._publish_state("running", start_wall_ns=self.start_wall_ns, robots=sorted(self.robots))
         self.get_logger().info(f"{self.mode}: {len(self.robots)} robot(s), {self.n_steps} steps of {self.scenario.dt_s} s")
         if self.mode == "lockstep":
@@ -176,24 +192,74 @@ class WorldNode(Node):
     # --- lockstep ----------------------------------------------------------------------------------------
 
     def _advance(self) -> None:
-        while True:
+        """Publish /clock for every step the window and the recorder allow; finish after the last."""
+        dt = self.scenario.dt_s
+        while self.step < self.n_steps and self.step < self.complete + self.window_steps and self._recorder_allows(
+                self.step + 1):
             self.step += 1
-            self.reported.clear()
-            if self.step > self.n_steps:
-                self._finish()
-                return
-            self._maybe_update_field(self.step * self.scenario.dt_s)
-            self.pub_clock.publish(convert.clock_msg(convert.step_stamp_ns(self.step, self.scenario.dt_s)))
-            if self.robots:
-                return
+            self._maybe_update_field(self.step * dt)
+            self.pub_clock.publish(convert.clock_msg(convert.step_stamp_ns(self.step, dt)))
+            if not self.robots:  # nobody to wait for
+                self.complete = self.step
+        if self.complete >= self.n_steps:
+            self._wait_for_recorder_then_finish()
 
     def _on_pose(self, rid: int, data: bytes) -> None:
-        if self.step < 0 or self.step > self.n_steps:
+        if self.step < 0 or self.end_wall_ns:
             return
-        if convert.stamp_ns_from_cdr(data) == convert.step_stamp_ns(self.step, self.scenario.dt_s):
-            self.reported.add(rid)
-            if len(self.reported) >= len(self.robots):
-                self._advance()
+        stamp = convert.stamp_ns_from_cdr(data)
+        k = int(round(stamp / (self.scenario.dt_s * convert.NS_PER_S)))
+        if k <= self.complete or k > self.step or stamp != convert.step_stamp_ns(k, self.scenario.dt_s):
+            return
+        self.reported[k] = self.reported.get(k, 0) + 1
+        advanced = False
+        while self.reported.get(self.complete + 1, 0) >= len(self.robots):
+            self.complete += 1
+            del self.reported[self.complete]
+            advanced = True
+        if advanced:
+            self._advance()
+
+    # --- recorder back-pressure -----------------------------------------------------------------------
+
+    def _recorder_allows(self, step: int) -> bool:
+        """Step ``step`` may start once the recorder holds every robot message of step
+        ``step - recorder_lag_steps`` (robots keep 200 messages per topic: nothing is overwritten)."""
+        if not self.await_recorder or self._ack_timed_out():
+            return True
+        needed = len(DATA_TOPICS) * len(self.robots) * (step - self.recorder_lag_steps + 1)
+        return self.recorded >= needed
+
+    def _ack_timed_out(self) -> bool:
+        if time.monotonic() - self._ack_progress_at < self.ack_timeout_s:
+            return False
+        if not self._ack_warned:
+            self._ack_warned = True
+            self.get_logger().warning(f"no progress from the recorder for {self.ack_timeout_s:g} s "
+                                      f"({self.recorded} messages acknowledged): no longer waiting for it")
+        return True
+
+    def _on_recorded(self, msg: UInt64) -> None:
+        if msg.data > self.recorded:
+            self.recorded = int(msg.data)
+            self._ack_progress_at = time.monotonic()
+        if self.mode == "lockstep" and self.step >= 0 and not self.end_wall_ns:
+            self._advance()
+
+    def _wait_for_recorder_then_finish(self) -> None:
+        if self.end_wall_ns or self._finish_timer is not None:
+            return
+        total = len(DATA_TOPICS) * len(self.robots) * (self.n_steps + 1)
+        if not self.await_recorder or self.recorded >= total or self._ack_timed_out():
+            self._finish()
+        elif self._finish_timer is None:
+            self._finish_timer = self.create_timer(0.01, self._check_finish)
+
+    def _check_finish(self) -> None:
+        total = len(DATA_TOPICS) * len(self.robots) * (self.n_steps + 1)
+        if self.recorded >= total or self._ack_timed_out():
+            self._finish_timer.cancel()
+            self._finish()
 
     # --- realtime ------------------------------------------------------------------------------------------
 

@@ -141,6 +141,142 @@ def ticks_from_clock(msg: TimeReference, tick_hz: float) -> float:
     return time_to_ns(msg.time_ref) / NS_PER_S * tick_hz
 
 
+# --- robot messages as serialized CDR ---------------------------------------------------------------
+#
+# rclpy's Publisher.publish() also takes the serialized bytes of a message (published as they are).
+# Filling Python message objects costs a validated setter call per field plus a conversion to C
+# per publish; a swarm instead writes every robot's four messages into NumPy record arrays laid
+# out as their CDR (little endian, XCDR1: 4-byte encapsulation header, then each primitive aligned
+# to its size counted from the end of that header) and publishes slices of one buffer.
+
+_CDR_HEADER = b"\x00\x01\x00\x00"  # CDR_LE, no options
+
+
+def _align(offset: int, size: int) -> int:
+    return (offset + size - 1) // size * size
+
+
+def _cdr_string(text: str) -> bytes:
+    raw = text.encode() + b"\x00"
+    return len(raw).to_bytes(4, "little") + raw
+
+
+def _header_layout(frame_id: str) -> tuple[bytes, int]:
+    """A std_msgs/Header with a zero stamp (body bytes) and the body offset where it ends."""
+    body = bytes(8) + _cdr_string(frame_id)
+    return body, len(body)
+
+
+class _CdrRecord:
+    """One message type's CDR layout: constant bytes plus named primitive fields at fixed offsets."""
+
+    def __init__(self, constant: bytes, fields: dict[str, tuple[int, str]]):
+        self.size = len(constant)
+        self.template = np.frombuffer(constant, dtype=np.uint8)
+        self.dtype = np.dtype({"names": list(fields), "formats": [f for _, f in fields.values()],
+                               "offsets": [o for o, _ in fields.values()], "itemsize": self.size})
+
+    def empty(self, n: int) -> np.ndarray:
+        """``n`` records holding the constant bytes (strings, zero padding)."""
+        return np.tile(self.template, n).view(self.dtype)
+
+
+def _stamped(frame_id: str, tail: list[tuple[str, str, int]], tail_bytes: bytes = b"") -> _CdrRecord:
+    """Header + primitives ``(name, numpy format, size)`` in order + constant ``tail_bytes``."""
+    header, end = _header_layout(frame_id)
+    fields = {"sec": (4, "<i4"), "nanosec": (8, "<u4")}
+    body = bytearray(header)
+    for name, fmt, size in tail:
+        start = _align(len(body), size)
+        body += bytes(start - len(body) + size)
+        fields[name] = (4 + start, fmt)
+    body += tail_bytes
+    return _CdrRecord(_CDR_HEADER + bytes(body), fields)
+
+
+_POSE_CDR = _stamped(FRAME_ID, [(k, "<f8", 8) for k in ("x", "y", "z", "qx", "qy", "qz", "qw")])
+_LIGHT_CDR = _stamped(FRAME_ID, [("illuminance", "<f8", 8), ("variance", "<f8", 8)])
+_CLOCK_CDR = _stamped(FRAME_ID, [("ref_sec", "<i4", 4), ("ref_nanosec", "<u4", 4)],
+                      _cdr_string("kilo_ticks"))
+_LED_CDR = _CdrRecord(_CDR_HEADER + bytes(16), {c: (4 + 4 * i, "<f4") for i, c in enumerate("rgba")})
+_LED_TABLE = np.zeros((max(_LED_RGBA) + 1, 4), dtype=np.float32)
+for _code, _rgba in _LED_RGBA.items():
+    _LED_TABLE[_code] = _rgba
+
+
+def _split_ns(ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    sec, nsec = np.divmod(np.asarray(ns, dtype=np.int64), NS_PER_S)
+    return sec, nsec
+
+
+def _rows(records: np.ndarray) -> list[bytes]:
+    """The records as separate ``bytes`` objects (what Publisher.publish takes)."""
+    buf = records.tobytes()
+    size = records.dtype.itemsize
+    return [buf[i:i + size] for i in range(0, len(buf), size)]
+
+
+def robot_cdr(stamp_ns, x_m, y_m, theta_rad, reading, reading_variance, led, ticks, tick_hz: float):
+    """Serialized ``(pose, light, led, clock)`` messages of robots, each a list of ``bytes``.
+
+    Every argument but ``tick_hz`` is a scalar or an array over the robots (shape ``(n,)``); the
+    bytes decode to what :meth:`RobotMessages.fill` puts into the message objects.
+    """
+    x_m = np.atleast_1d(np.asarray(x_m, dtype=np.float64))
+    n = x_m.shape[0]
+    sec, nsec = _split_ns(np.broadcast_to(np.asarray(stamp_ns, dtype=np.int64), (n,)))
+    pose = _POSE_CDR.empty(n)
+    light = _LIGHT_CDR.empty(n)
+    clock = _CLOCK_CDR.empty(n)
+    for rec in (pose, light, clock):
+        rec["sec"], rec["nanosec"] = sec, nsec
+    pose["x"], pose["y"] = x_m, y_m
+    half = 0.5 * np.asarray(theta_rad, dtype=np.float64)
+    pose["qz"], pose["qw"] = np.sin(half), np.cos(half)
+    light["illuminance"], light["variance"] = reading, reading_variance
+    colors = _LED_CDR.empty(n)
+    rgba = _LED_TABLE[np.asarray(led, dtype=np.int64)]
+    for i, c in enumerate("rgba"):
+        colors[c] = np.broadcast_to(rgba[..., i], (n,))
+    ref_ns = np.rint(np.asarray(ticks, dtype=np.float64) / tick_hz * NS_PER_S).astype(np.int64)
+    clock["ref_sec"], clock["ref_nanosec"] = _split_ns(np.broadcast_to(ref_ns, (n,)))
+    return _rows(pose), _rows(light), _rows(colors), _rows(clock)
+
+
+def _header_end(data: bytes) -> int:
+    """Offset (in the whole buffer) just after a serialized std_msgs/Header."""
+    return 4 + 12 + int.from_bytes(data[12:16], "little")
+
+
+def _check_le(data: bytes) -> None:
+    if data[1] != 1:
+        raise ValueError("expected little-endian CDR")
+
+
+def pose_xy_from_cdr(data: bytes) -> tuple[float, float]:
+    """(x m, y m) of a serialized geometry_msgs/PoseStamped (little-endian CDR)."""
+    _check_le(data)
+    start = 4 + _align(_header_end(data) - 4, 8)
+    return struct.unpack_from("<dd", data, start)
+
+
+def led_from_cdr(data: bytes) -> int:
+    """The LED code of a serialized std_msgs/ColorRGBA (as :func:`led_from_color`)."""
+    _check_le(data)
+    r, _g, b, a = struct.unpack_from("<ffff", data, 4)
+    if a == 0.0:
+        return LED_OFF
+    return LED_RED if r >= b else LED_BLUE
+
+
+def ticks_from_clock_cdr(data: bytes, tick_hz: float) -> float:
+    """The robot's kilo_ticks from a serialized sensor_msgs/TimeReference (as :func:`ticks_from_clock`)."""
+    _check_le(data)
+    start = 4 + _align(_header_end(data) - 4, 4)
+    sec, nsec = struct.unpack_from("<iI", data, start)
+    return (sec * NS_PER_S + nsec) / NS_PER_S * tick_hz
+
+
 # --- traits ------------------------------------------------------------------------------------
 
 def traits_to_msg(robot_id: int, traits: RobotTraits, behavior: Mapping[str, Any], seed: int, run: int) -> String:

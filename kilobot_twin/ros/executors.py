@@ -11,6 +11,11 @@ import os
 
 import rclpy.executors
 import rclpy.utilities
+from rclpy.task import Future
+
+#: Wall seconds the EventsExecutor runs its C++ event loop before Python gets control back
+#: (to notice a signal, a finished ``until`` or a shut-down context).
+SPIN_SLICE_S = 0.25
 
 
 def make_executor(context=None, events: bool | None = None):
@@ -30,12 +35,18 @@ def make_executor(context=None, events: bool | None = None):
 def spin(executor, context=None, until=None) -> None:
     """Spin until ``until`` (a Future) is done or the context shuts down.
 
-    The EventsExecutor's own ``spin()`` is not woken by SIGINT/SIGTERM in this rclpy (7.1.6), so we
-    spin in short slices: Ctrl-C then raises KeyboardInterrupt and SIGTERM
-    ExternalShutdownException, as with the other executors.
+    In rclpy 7.1.6 the EventsExecutor's ``spin()`` neither runs timers nor wakes on
+    SIGINT/SIGTERM, and ``spin_once()`` returns after every single event (a Python round trip per
+    message). ``spin_until_future_complete(future, timeout)`` runs the C++ event loop for a whole
+    slice and stops early when the future completes, so we spin in slices of
+    :data:`SPIN_SLICE_S`: every message is handled inside the loop, and between slices rclpy's
+    signal handling shuts the context down on Ctrl-C / SIGTERM, which ends the loop with
+    ExternalShutdownException as with the other executors.
     """
     context = context if context is not None else rclpy.utilities.get_default_context()
+    # Each slice adds a done callback to the future it waits on: with nothing to await, a fresh
+    # future per slice keeps that list from growing over a long run.
     while context.ok() and (until is None or not until.done()):
-        executor.spin_once(timeout_sec=0.1)
+        executor.spin_until_future_complete(until if until is not None else Future(), SPIN_SLICE_S)
     if not context.ok():
         raise rclpy.executors.ExternalShutdownException()

@@ -24,6 +24,8 @@ from ..errors import ConfigError
 from .scenarios import NAMED, load_swarm_traits, named_scenario
 
 NODES = ("recorder", "analysis", "world", "swarm")
+#: Fast DDS profiles for the node processes (shared-memory queues sized for swarm bursts).
+FASTDDS_PROFILES = Path(__file__).with_name("fastdds.xml")
 
 
 @dataclass
@@ -157,6 +159,7 @@ def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 2
         for s in (signal.SIGINT, signal.SIGTERM):
             old[s] = signal.signal(s, on_signal)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
+    env.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(FASTDDS_PROFILES))
     try:
         for name in NODES:
             log = logs / f"{name}.log"

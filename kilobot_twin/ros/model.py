@@ -14,7 +14,7 @@ import numpy as np
 from ..core import sim
 from ..core.scenario import Scenario
 from ..core.traits import RobotTraits, SwarmTraits
-from .convert import RobotSample
+from .convert import RobotSample, robot_cdr
 from .scenarios import start_pose
 
 
@@ -49,6 +49,14 @@ class SwarmModel:
             led=int(st.led[0, col]), ticks=float(st.ticks[0, col]), tick_hz=self.scenario.tick_hz,
             reading_variance=float(self.variance[col]),
         )
+
+    def serialized(self, stamp_ns, cols=slice(None)):
+        """Serialized ``(pose, light, led, clock)`` lists for columns ``cols`` (all by default),
+        stamped ``stamp_ns`` (one value or one per column): see :func:`convert.robot_cdr`."""
+        st = self.state
+        return robot_cdr(stamp_ns, st.x[0, cols], st.y[0, cols], st.theta[0, cols], st.reading[0, cols],
+                         np.broadcast_to(self.variance, st.x.shape[1:])[cols], st.led[0, cols], st.ticks[0, cols],
+                         self.scenario.tick_hz)
 
 
 class RobotModel(SwarmModel):
