@@ -46,11 +46,13 @@ def write_markdown(out: Path, report: dict, sections: list) -> Path:
             axes[1].bar(k, v, color=col, yerr=[[max(v - lo, 0)], [max(hi - v, 0)]], capsize=6)
         axes[1].set_xticks([0, 1], ["before", "after"])
         axes[1].set_title("gap with 95 % interval")
+        names = sorted({n for st in s["steps"] for n in st["scores"]})  # one axis for every step
+        width = 0.8 / max(len(s["steps"]), 1)
         for i, st in enumerate(s["steps"]):
-            names = list(st["scores"])
-            axes[2].bar(np.arange(len(names)) + 0.8 * i / max(len(s["steps"]), 1), [st["scores"][n] for n in names],
-                        0.8 / max(len(s["steps"]), 1), label=f"step {i + 1}")
-            axes[2].set_xticks(np.arange(len(names)), names, rotation=20, fontsize=7)
+            vals = [st["scores"].get(n, np.nan) for n in names]
+            axes[2].bar(np.arange(len(names)) + width * (i - (len(s["steps"]) - 1) / 2), vals, width,
+                        label=f"step {i + 1}: named {st['name']}")
+        axes[2].set_xticks(np.arange(len(names)), names, rotation=20, fontsize=7)
         axes[2].axhline(0, color="k", lw=0.5)
         axes[2].set_title("candidate scores (held-out log-lik gain)")
         if s["steps"]:
