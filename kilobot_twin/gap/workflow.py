@@ -220,23 +220,30 @@ def _loglik_per_robot(meas, pred, comps):
 
 
 def _gap(meas, pred, yard, comps, robots=None) -> float:
-    """The gap: held-out prediction error in units of the final model's noise, minus 1.
+    """The gap: held-out prediction error in noise units, minus 1 (0 = as good as the model's noise).
 
-    Two equally weighted parts, each 0 for a model as good as its own noise:
-    per track, z = (measured - the model's simulated mean for that trial and robot) / spread;
-    per trial level, z = (mean over robots of measured - of predicted) / (spread / sqrt(n)),
-    which sees population-level errors (a wrong noise level) that single tracks hide.
+    Three equally weighted parts, each about 0 for a model that reproduces the data:
+
+    - per track, against the final model's spread: z = (measured - the model's simulated mean for
+      that trial and robot) / final spread; sees missing per-robot or per-trial structure;
+    - per track, against the model's own spread: sees a model whose noise is too narrow or wide
+      (a wrong noise level moves spreads, not means);
+    - per trial level: z = (mean over robots of measured - of predicted) / (spread / sqrt(n));
+      sees population-level errors that single tracks hide.
+
     ``robots`` (indices, may repeat) resamples robots for the bootstrap.
     """
-    track, level = [], []
+    track, own, level = [], [], []
     for c in comps:
-        m, mu, sd = meas[c], pred[c]["mean"], yard[c]["sd"][:, None]
+        m, mu = meas[c], pred[c]["mean"]
+        sd, sd_own = yard[c]["sd"][:, None], pred[c]["sd"][:, None]
         if robots is not None:
             m, mu = m[:, robots], mu[:, robots]
         track.append(((m - mu) / sd) ** 2)
+        own.append(((m - mu) / sd_own) ** 2)
         n = np.isfinite(m).sum(axis=1)
         level.append(((np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (sd[:, 0] / np.sqrt(n))) ** 2)
-    return 0.5 * (np.nanmean(np.stack(track)) - 1.0) + 0.5 * (np.nanmean(np.stack(level)) - 1.0)
+    return float(np.mean([np.nanmean(np.stack(x)) - 1.0 for x in (track, own, level)]))
 
 
 def _excess_z2(meas, pred, yard, comps):
@@ -358,7 +365,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
     for j, st in enumerate(steps):
         st["gap_after"] = _gap(meas, pred_cache[names[: j + 1]], pred_final, comps)
     metric = ("held-out prediction error (leave-one-trial-out) of the summaries (" + ", ".join(comps)
-              + "), z^2 - 1 in units of the final model's spread, per track and per trial level")
+              + "): mean z^2 - 1 per track (final model's spread), per track (own spread) and per trial level")
     section = {
         "dataset": str(ds.path), "kind": kind, "robots": [int(r) for r in cond.robot_ids], "trials": cond.trials,
         "named_effects": list(names), "unexplained": unexplained, "unexplained_signals": unexplained_signals,
