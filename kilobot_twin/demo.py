@@ -70,7 +70,8 @@ def run_demo(out: str | Path = "out/demo", quick: bool = False, workers: int | N
     cost = result["summary"]["cost_m"]
     summary = phototaxis_summary(bias, cost, p_rights)
     plot = cost_vs_bias(bias, cost, [f"P_R = {p}" for p in p_rights], out / "phototaxis.png",
-                        title=f"Phototaxis: {len(bias)} robots x {cfg.runs} runs, seed {cfg.seed}")
+                        title=f"Phototaxis: {len(bias)} robots x {cfg.runs} runs, seed {cfg.seed}",
+                        xlabel=f"heading bias, paper axis (+ = right; model b = {bias_axis_scale(doc['scenario'].get('preset')):g} x axis)")
     meta = result["meta"]
     summary_doc = {
         "seed": cfg.seed,

@@ -26,7 +26,8 @@ def bias_cmap():
     return LinearSegmentedColormap.from_list("bias", [(1.0, 0.0, 0.0), (0.5, 0.0, 0.5), (0.0, 0.35, 1.0)])
 
 
-def cost_vs_bias(bias, cost, labels, path, delta_acc=0.75, title="Phototaxis cost vs heading bias"):
+def cost_vs_bias(bias, cost, labels, path, delta_acc=0.75, title="Phototaxis cost vs heading bias",
+                 xlabel="heading bias (+ = right)"):
     """Fig. 5 style: one panel per grid point; dots per (run, robot), black mean line.
 
     Parameters
@@ -47,7 +48,7 @@ def cost_vs_bias(bias, cost, labels, path, delta_acc=0.75, title="Phototaxis cos
         ax.plot(bias[order], cost[g].mean(axis=0)[order], color="k", lw=2, label="mean")
         ax.axhline(delta_acc, color="tab:green", lw=1.5, ls="--", label=f"delta_acc = {delta_acc} m")
         ax.set_title(labels[g])
-        ax.set_xlabel("heading bias (+ = right)")
+        ax.set_xlabel(xlabel)
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("cost: mean distance to light (m)")
     axes[0][0].legend(loc="upper center", fontsize=8)

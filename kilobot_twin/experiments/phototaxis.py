@@ -132,7 +132,8 @@ def plot_phototaxis(o: Outcome, out_dir):
     axis, cost = d["bias_axis"], d["cost_m"]
     paths = [cost_vs_bias(axis, cost, [f"P_R = {p}" for p in d["p_right"]], out_dir / "fig5_phototaxis.png",
                           delta_acc=DELTA_ACC, title=f"Phototaxis cost vs heading bias ({o.meta['robots']} robots x "
-                          f"{o.meta['runs']} runs; model b = {o.meta['bias_axis_scale']:g} x axis)")]
+                          f"{o.meta['runs']} runs)",
+                          xlabel=f"heading bias, paper axis (model b = {o.meta['bias_axis_scale']:g} x axis)")]
     # Fig. 5d: ensemble distributions.
     fig, ax = plt.subplots(figsize=(5, 4))
     parts = ax.violinplot([c.ravel() for c in cost], showextrema=False)
