@@ -18,9 +18,7 @@ from __future__ import annotations
 import re
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import PoseStamped
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import TimeReference
 from std_msgs.msg import ColorRGBA, Float64, String, UInt32
@@ -28,9 +26,8 @@ from std_msgs.msg import ColorRGBA, Float64, String, UInt32
 from ..core import clocks
 from ..core.constants import LED_BLUE, LED_RED
 from ..core.scenario import Scenario
-from ..errors import ConfigError
 from ..ros import convert, params, qos
-from ..ros.executors import make_executor, spin
+from ..ros.executors import run_node
 from ..ros.scenarios import parse_world_document, scenario_from_document
 
 PROG = "kilobot-twin analysis"
@@ -121,21 +118,7 @@ class AnalysisNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = AnalysisNode()
-        executor = make_executor()
-        executor.add_node(node)
-        spin(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ConfigError as exc:
-        params.report_and_exit(PROG, exc)
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(PROG, AnalysisNode, args=args)
 
 
 if __name__ == "__main__":

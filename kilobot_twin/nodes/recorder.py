@@ -26,8 +26,6 @@ import re
 import time
 from datetime import datetime, timezone
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
@@ -37,7 +35,7 @@ from .. import __version__
 from ..errors import ConfigError
 from ..ros import params, qos
 from ..ros.bag import DEFAULT_CHUNK_BYTES, BagWriter, qos_yaml
-from ..ros.executors import make_executor, spin
+from ..ros.executors import run_node
 
 PROG = "kilobot-twin recorder"
 #: Robot data topics: what the recorder acknowledges on ``~/recorded`` (the world's back-pressure).
@@ -170,22 +168,7 @@ class RecorderNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = RecorderNode()
-        executor = make_executor()
-        executor.add_node(node)
-        spin(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ConfigError as exc:
-        params.report_and_exit(PROG, exc)
-    finally:
-        if node is not None:
-            node.close()
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(PROG, RecorderNode, on_exit=RecorderNode.close, args=args)
 
 
 if __name__ == "__main__":

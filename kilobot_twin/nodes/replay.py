@@ -26,12 +26,12 @@ from pathlib import Path
 import numpy as np
 import rclpy
 import yaml
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from ..errors import ConfigError
 from ..ros import params
+from ..ros.executors import run_node
 from .recorder import message_class
 
 PROG = "kilobot-twin replay"
@@ -262,21 +262,13 @@ def replay_bag(bag: str, rate: float = 1.0, loop: bool = False, topics: list[str
             rclpy.try_shutdown()
 
 
+def _play(node) -> None:
+    stats = node.play()
+    node.get_logger().info(f"replayed {stats['messages']} messages; timing error p99 {stats.get('err_p99_ms', 0):.3f} ms")
+
+
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = ReplayNode()
-        stats = node.play()
-        node.get_logger().info(f"replayed {stats['messages']} messages; timing error p99 {stats.get('err_p99_ms', 0):.3f} ms")
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ConfigError as exc:
-        params.report_and_exit(PROG, exc)
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(PROG, ReplayNode, run=_play, args=args)
 
 
 if __name__ == "__main__":

@@ -25,17 +25,14 @@ import re
 import sys
 import time
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Illuminance, TimeReference
 from geometry_msgs.msg import PoseStamped
 from std_msgs.msg import ColorRGBA, String
 
-from ..errors import ConfigError
 from ..ros import convert, params, qos
-from ..ros.executors import make_executor, spin
+from ..ros.executors import run_node
 from ..ros.model import RobotModel, SwarmModel
 from ..ros.scenarios import parse_world_document, scenario_from_document
 
@@ -171,21 +168,7 @@ def robot_id_from_args(argv) -> int | None:
 
 def main(args=None):
     argv = sys.argv if args is None else args
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = RobotNode(robot_id_from_args(argv))
-        executor = make_executor()
-        executor.add_node(node)
-        spin(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ConfigError as exc:
-        params.report_and_exit(PROG, exc)
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(PROG, lambda: RobotNode(robot_id_from_args(argv)), args=args)
 
 
 if __name__ == "__main__":

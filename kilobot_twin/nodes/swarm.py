@@ -21,8 +21,6 @@ import resource
 import sys
 import time
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
@@ -31,9 +29,8 @@ from std_msgs.msg import String
 
 from ..core import behaviors as B
 from ..core.traits import TRAIT_NAMES
-from ..errors import ConfigError
 from ..ros import convert, params, qos
-from ..ros.executors import make_executor, spin
+from ..ros.executors import make_executor, run_node, spin
 from ..ros.model import SwarmModel
 from ..ros.scenarios import load_swarm_traits, parse_world_document, scenario_from_document
 from .robot import RobotNode
@@ -207,25 +204,17 @@ class SwarmNode(Node):
         return super().destroy_node()
 
 
+def _run(node: SwarmNode) -> None:
+    """Wait for the world's scenario, then create the robots in the same executor and spin."""
+    executor = make_executor()
+    executor.add_node(node)
+    spin(executor, until=node.world_ready)
+    node.create_robots(executor)
+    spin(executor)
+
+
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SwarmNode()
-        executor = make_executor()
-        executor.add_node(node)
-        spin(executor, until=node.world_ready)
-        node.create_robots(executor)
-        spin(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ConfigError as exc:
-        params.report_and_exit(PROG, exc)
-    finally:
-        if node is not None:
-            node.write_stats()
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(PROG, SwarmNode, run=_run, on_exit=SwarmNode.write_stats, args=args)
 
 
 if __name__ == "__main__":

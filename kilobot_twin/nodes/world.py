@@ -28,12 +28,9 @@ from __future__ import annotations
 
 import json
 import re
-import sys
 import time
 
 import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
 from geometry_msgs.msg import PoseStamped
@@ -45,7 +42,7 @@ from ..core.scenario import Scenario, scenario_from_dict
 from ..core.traits import load_yaml
 from ..errors import ConfigError
 from ..ros import convert, params, qos
-from ..ros.executors import make_executor, spin
+from ..ros.executors import run_node, spin_node
 from ..ros.scenarios import NAMED, named_scenario, world_document
 
 PROG = "kilobot-twin world"
@@ -290,21 +287,7 @@ class WorldNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = WorldNode()
-        executor = make_executor()
-        executor.add_node(node)
-        spin(executor, until=node.finished)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ConfigError as exc:
-        params.report_and_exit(PROG, exc)
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(PROG, WorldNode, run=lambda node: spin_node(node, until=node.finished), args=args)
 
 
 if __name__ == "__main__":

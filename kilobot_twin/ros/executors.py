@@ -50,3 +50,38 @@ def spin(executor, context=None, until=None) -> None:
         executor.spin_until_future_complete(until if until is not None else Future(), SPIN_SLICE_S)
     if not context.ok():
         raise rclpy.executors.ExternalShutdownException()
+
+
+def spin_node(node, until=None) -> None:
+    """Spin one node in its own executor until ``until`` is done or the context shuts down."""
+    executor = make_executor()
+    executor.add_node(node)
+    spin(executor, until=until)
+
+
+def run_node(prog: str, make_node, run=spin_node, on_exit=None, args=None) -> None:
+    """The life of every node process (the Jazzy pattern, once for all nodes).
+
+    ``rclpy.init``; build the node with ``make_node()``; ``run(node)`` (default: spin it);
+    Ctrl-C and SIGTERM end it quietly, a bad parameter (:class:`ConfigError`) ends it with one
+    line and exit code 2; ``on_exit(node)`` (e.g. close a bag) and ``destroy_node`` always run;
+    then ``rclpy.try_shutdown``.
+    """
+    from ..errors import ConfigError
+    from . import params
+
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = make_node()
+        run(node)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    except ConfigError as exc:
+        params.report_and_exit(prog, exc)
+    finally:
+        if node is not None:
+            if on_exit is not None:
+                on_exit(node)
+            node.destroy_node()
+        rclpy.try_shutdown()
