@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core import clocks, sim
+from ..core import sim
 from ..core.traits import draw_population
 from .common import Check, Outcome, Settings
 
@@ -25,20 +25,14 @@ SWEEP_PERIOD_S = 60.0
 def run_sensing(s: Settings) -> Outcome:
     """12 robots under the same saw-tooth sweep of V (4 ramps); readings vs luminance."""
     swarm = draw_population(SENSING_POPULATION, seed=s.seed)
-    sc = s.scenario(behavior="blink", dt_s=0.1, duration_s=4 * SWEEP_PERIOD_S, tick_hz=31.0,
+    sc = s.scenario(behavior="still", dt_s=0.1, duration_s=4 * SWEEP_PERIOD_S, tick_hz=31.0,
                     light={"kind": "sweep", "period_s": SWEEP_PERIOD_S, "ramps": 4},
                     sensor={"knee": 6.0}, start={"kind": "grid", "spacing_m": 0.0, "columns": 12})
-    # Blink robots stand still; read the light every step with the robot's own sensor.
-    st = sim.init_state(sc, swarm, s.seed)
-    T = sc.n_steps
-    readings = np.empty((len(swarm), T))
-    v = np.empty(T)
-    for k in range(T):
-        sim.step(st, sc)
-        t = (k + 1) * sc.dt_s
-        v[k] = sc.light.v_value(t)
-        readings[:, k] = sim._sense(sc, st, t, k + 1)[0]
-    t_s = (np.arange(T) + 1) * sc.dt_s  # the time each reading was taken
+    # The robots stand still and read the light every step with their own sensors.
+    res = sim.simulate(sc, swarm, s.seed, record_every=1)
+    readings = res.traj["reading"][0, :, 1:]  # (robots, T): the reading taken at the end of each step
+    t_s = res.t_s[1:]
+    v = sc.light.v_value(t_s)
     ramp = np.minimum(np.floor(t_s / SWEEP_PERIOD_S + 1e-9).astype(int), 3)
     thresholds = np.arange(0, 1024, 8)
     # Agreement (Fig. 8c): per V bin of the first ramp, how many robots read above a threshold.
