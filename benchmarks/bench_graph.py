@@ -13,13 +13,11 @@
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -99,7 +97,6 @@ def bench_recorder(tmp: Path, rate=55_000.0, seconds=10.0, topics=10):
                             "-p", "topics:=/kilobot_"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     pub = subprocess.run([sys.executable, "-c", PUBLISHER, str(rate), str(seconds), str(topics)], env=env,
                          capture_output=True, text=True, timeout=120)
-    t_stop = time.monotonic()
     rec.send_signal(signal.SIGINT)
     rec.wait(60)
     sent, elapsed = pub.stdout.split()

@@ -89,7 +89,7 @@ def run_demo(out: str | Path = "out/demo", quick: bool = False, workers: int | N
     lines = ["# kilobot_twin demo", ""]
     if twin_res is not None:
         t = summary_doc["twin"]
-        lines += [f"## The ROS 2 twin", "",
+        lines += ["## The ROS 2 twin", "",
                   f"{t['robots']} individual Kilobots doing phototaxis for {t['duration']:g} s as ROS 2 nodes ({t['mode']}); "
                   f"bag `{t['bag']}` (rosbag2 MCAP), Rerun recording `{t['rerun']}` (`rerun {t['rerun']}`).", "",
                   "```", twin_res["run"].text(), "```", ""]

@@ -25,7 +25,6 @@ Tracking gaps (missing rows) stay gaps: nothing is written for them. Bad input i
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np

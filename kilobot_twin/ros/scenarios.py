@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 from typing import Any, Mapping
 
-import numpy as np
 
 from ..core.scenario import Scenario, scenario_from_dict
 from ..errors import ConfigError

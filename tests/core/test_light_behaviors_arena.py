@@ -5,7 +5,7 @@ import pytest
 
 from kilobot_twin.core import light, sim
 from kilobot_twin.core.arena import Arena
-from kilobot_twin.core.behaviors import Phototaxis, RandomWalk, Straight, ms_to_ticks
+from kilobot_twin.core.behaviors import RandomWalk, Straight, ms_to_ticks
 from kilobot_twin.core.constants import FORWARD, STOP, TURN_LEFT, TURN_RIGHT
 from kilobot_twin.core.scenario import Scenario, StartSpec, scenario_from_dict
 from kilobot_twin.core.traits import SwarmTraits

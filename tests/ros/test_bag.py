@@ -6,10 +6,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from geometry_msgs.msg import PoseStamped
 from rclpy.serialization import serialize_message
-from sensor_msgs.msg import Illuminance
-from std_msgs.msg import ColorRGBA, String
+from std_msgs.msg import String
 
 from kilobot_twin.ros import convert
 from kilobot_twin.ros.bag import BagWriter, mcap_path, read_metadata, repair_bag, summary_counts
