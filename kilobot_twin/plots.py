@@ -19,6 +19,14 @@ def _plt():
     return plt
 
 
+def save(fig, path, dpi: int = 110) -> Path:
+    """Lay out, write and close a figure; returns its path."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    _plt().close(fig)
+    return Path(path)
+
+
 def bias_cmap():
     """The paper's red (left, negative) -> purple -> blue (right, positive) map."""
     from matplotlib.colors import LinearSegmentedColormap
@@ -53,7 +61,4 @@ def cost_vs_bias(bias, cost, labels, path, delta_acc=0.75, title="Phototaxis cos
     axes[0][0].set_ylabel("cost: mean distance to light (m)")
     axes[0][0].legend(loc="upper center", fontsize=8)
     fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return save(fig, path, dpi=120)

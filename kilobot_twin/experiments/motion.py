@@ -79,7 +79,7 @@ def _circle_radius(x, y):
 
 
 def plot_straight(o: Outcome, out_dir):
-    from ..plots import _plt, bias_cmap
+    from ..plots import _plt, bias_cmap, save
 
     plt = _plt()
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.3), sharex=True, sharey=True)
@@ -97,11 +97,7 @@ def plot_straight(o: Outcome, out_dir):
         ax.set_aspect("equal")
         ax.set_xlabel("x [m]")
     axes[0].set_ylabel("y [m]")
-    fig.tight_layout()
-    path = out_dir / "fig1_straight.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return [path]
+    return [save(fig, out_dir / "fig1_straight.png")]
 
 
 def run_bias_per_robot(s: Settings) -> Outcome:
@@ -140,7 +136,7 @@ def run_bias_per_robot(s: Settings) -> Outcome:
 
 
 def plot_bias_per_robot(o: Outcome, out_dir):
-    from ..plots import _plt, bias_cmap
+    from ..plots import _plt, bias_cmap, save
 
     plt = _plt()
     est = o.data["estimated"]
@@ -156,11 +152,7 @@ def plot_bias_per_robot(o: Outcome, out_dir):
     axh.hist(est.ravel(), bins=25, orientation="horizontal", color="grey")
     axh.set_xlabel("count")
     fig.suptitle(f"sigma (ensemble) = {o.meta['sigma_ensemble']:.4f}  >  mean sigma_i = {o.meta['mean_sigma_i']:.4f}")
-    fig.tight_layout()
-    path = out_dir / "fig2_bias_per_robot.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return [path]
+    return [save(fig, out_dir / "fig2_bias_per_robot.png")]
 
 
 def run_decalibration(s: Settings) -> Outcome:
@@ -183,7 +175,7 @@ def run_decalibration(s: Settings) -> Outcome:
 
 
 def plot_decalibration(o: Outcome, out_dir):
-    from ..plots import _plt
+    from ..plots import _plt, save
 
     plt = _plt()
     fig, ax = plt.subplots(figsize=(4.5, 4.5))
@@ -195,8 +187,4 @@ def plot_decalibration(o: Outcome, out_dir):
     ax.set_ylabel("y [m]")
     ax.legend(fontsize=7)
     ax.set_title("Decalibration over trials (Fig. 1f)")
-    fig.tight_layout()
-    path = out_dir / "fig1f_decalibration.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return [path]
+    return [save(fig, out_dir / "fig1f_decalibration.png")]

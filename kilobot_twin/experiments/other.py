@@ -76,7 +76,7 @@ def _sensing_checks(d):
 
 
 def plot_sensing(o: Outcome, out_dir):
-    from ..plots import _plt
+    from ..plots import _plt, save
 
     plt = _plt()
     d = o.data
@@ -103,11 +103,7 @@ def plot_sensing(o: Outcome, out_dir):
     axes[2].set_xlabel("projected V-value")
     axes[2].set_ylabel("threshold")
     axes[2].set_title("(c) agreement")
-    fig.tight_layout()
-    path = out_dir / "fig8_sensing.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return [path]
+    return [save(fig, out_dir / "fig8_sensing.png")]
 
 
 # --- Fig. 9 a-c: natural frequency ---------------------------------------------------------------
@@ -170,7 +166,7 @@ def _frequency_checks(d):
 
 
 def plot_frequency(o: Outcome, out_dir):
-    from ..plots import _plt
+    from ..plots import _plt, save
 
     plt = _plt()
     d = o.data
@@ -193,11 +189,7 @@ def plot_frequency(o: Outcome, out_dir):
     ax.set_xlabel("sample (30 per s)")
     ax.set_ylabel("population ratio (blue)")
     ax.set_title("(c) from synchrony to ~0.5")
-    fig.tight_layout()
-    path = out_dir / "fig9_frequency.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return [path]
+    return [save(fig, out_dir / "fig9_frequency.png")]
 
 
 # --- Fig. 9 d-f: Kuramoto coupling ----------------------------------------------------------------
@@ -248,7 +240,7 @@ def _kuramoto_checks(d):
 
 
 def plot_kuramoto(o: Outcome, out_dir):
-    from ..plots import _plt
+    from ..plots import _plt, save
 
     plt = _plt()
     d = o.data
@@ -265,8 +257,4 @@ def plot_kuramoto(o: Outcome, out_dir):
     axes[1].set_xlabel("coupling k [1/s] (k = 0 drawn at the left)")
     axes[1].set_ylabel("final order parameter")
     axes[1].set_title("weak: asynchronous, medium: synchronous, strong: fails")
-    fig.tight_layout()
-    path = out_dir / "fig9_kuramoto.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return [path]
+    return [save(fig, out_dir / "fig9_kuramoto.png")]

@@ -125,7 +125,7 @@ def phototaxis_checks(d) -> list[Check]:
 
 
 def plot_phototaxis(o: Outcome, out_dir):
-    from ..plots import _plt, bias_cmap, cost_vs_bias
+    from ..plots import _plt, bias_cmap, cost_vs_bias, save
 
     plt = _plt()
     d = o.data
@@ -145,10 +145,7 @@ def plot_phototaxis(o: Outcome, out_dir):
     ax.set_ylabel("cost [m]")
     ax.set_title("(5d) ensemble, individuality removed")
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(out_dir / "fig5d_ensemble.png", dpi=110)
-    plt.close(fig)
-    paths.append(out_dir / "fig5d_ensemble.png")
+    paths.append(save(fig, out_dir / "fig5d_ensemble.png"))
     # Fig. 6: R_acc and N_acc vs delta_acc.
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for rng_max, ax in zip((4.0, 1.0), axes):
@@ -164,10 +161,7 @@ def plot_phototaxis(o: Outcome, out_dir):
         ax2.set_ylabel("N_acc / 1000 (dashed)")
         ax.legend(loc="lower right")
     fig.suptitle("(6) acceptable range and number vs threshold")
-    fig.tight_layout()
-    fig.savefig(out_dir / "fig6_acceptance.png", dpi=110)
-    plt.close(fig)
-    paths.append(out_dir / "fig6_acceptance.png")
+    paths.append(save(fig, out_dir / "fig6_acceptance.png"))
     # Fig. 4: example trajectories.
     fig, axes = plt.subplots(1, 3, figsize=(12, 4), sharex=True, sharey=True)
     cmap = bias_cmap()
@@ -177,8 +171,5 @@ def plot_phototaxis(o: Outcome, out_dir):
         ax.plot(0, 0, "b*", ms=12)
         ax.set_title(f"bias {b:+.2f} (P_R = 1, no noise)")
         ax.set_aspect("equal")
-    fig.tight_layout()
-    fig.savefig(out_dir / "fig4_trajectories.png", dpi=110)
-    plt.close(fig)
-    paths.append(out_dir / "fig4_trajectories.png")
+    paths.append(save(fig, out_dir / "fig4_trajectories.png"))
     return paths

@@ -70,7 +70,7 @@ def _checks(d, bias_range):
 
 
 def plot_random_walk(o: Outcome, out_dir):
-    from ..plots import _plt, bias_cmap
+    from ..plots import _plt, bias_cmap, save
 
     plt = _plt()
     d = o.data
@@ -83,8 +83,4 @@ def plot_random_walk(o: Outcome, out_dir):
     ax.set_ylabel("covered area [m^2] (3.3 cm cells)")
     ax.set_title(f"Random walk coverage ({o.meta['arena_m']:g} m arena, {o.meta['duration_s']:g} s)")
     ax.legend()
-    fig.tight_layout()
-    path = out_dir / "fig7_random_walk.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return [path]
+    return [save(fig, out_dir / "fig7_random_walk.png")]

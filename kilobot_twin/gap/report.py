@@ -8,7 +8,7 @@ import numpy as np
 
 
 def write_markdown(out: Path, report: dict, sections: list) -> Path:
-    from ..plots import _plt
+    from ..plots import _plt, save
 
     plt = _plt()
     lines = ["# Twin vs measurement", "",
@@ -57,10 +57,7 @@ def write_markdown(out: Path, report: dict, sections: list) -> Path:
         axes[2].set_title("candidate scores (held-out log-lik gain)")
         if s["steps"]:
             axes[2].legend(fontsize=7)
-        fig.tight_layout()
-        png = out / f"gap_{j}.png"
-        fig.savefig(png, dpi=100)
-        plt.close(fig)
+        png = save(fig, out / f"gap_{j}.png", dpi=100)
         lines += ["", f"![gap]({png.name})", ""]
     lines += [f"Updated model: `{report['model']}` (load with `kilobot-twin run --traits` or the batch engine)."]
     path = out / "report.md"
