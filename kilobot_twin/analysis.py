@@ -65,6 +65,8 @@ def turn_rate_from_track(t_s, x, y, min_step_m: float = 1e-4):
     The heading of each displacement between samples is unwrapped and a line is fitted to it
     against time (least squares). Works on the last axis; NaN positions (tracking gaps) and
     displacements shorter than ``min_step_m`` (standing still, tracker jitter) are skipped.
+    It takes each track's own (possibly irregular) sample times; for tracks on a common grid
+    the gap workflow uses the vectorised :func:`kilobot_twin.gap.summaries.motion` instead.
 
     Parameters
     ----------

@@ -111,8 +111,6 @@ def _est_var_rel(ref, model, resim=None):
 class Effect:
     name = ""
     kind = ""
-    params: tuple = ()
-    explains: tuple = ()  # summary components it changes
     extends: tuple = ()  # effects this one contains as a special case (nested models)
 
     def fit(self, model: TwinModel, meas: dict, ref: dict, resim=None) -> TwinModel:  # pragma: no cover
@@ -124,7 +122,7 @@ class Effect:
 class HeadingBias(Effect):
     """Persistent per-robot turn (positive = clockwise): the robot's mean bias over trials."""
 
-    name, kind, params, explains = "heading_bias", "motion", ("heading_bias",), ("turn_rate",)
+    name, kind = "heading_bias", "motion"
 
     def fit(self, model, meas, ref, resim=None):
         b = _bias(meas["turn_rate"], model) - model.swarm.bias_drift[None, :] * _trial_index(meas)
@@ -136,7 +134,7 @@ class HeadingBias(Effect):
 class BiasDrift(Effect):
     """Heading bias that changes linearly from trial to trial (decalibration): a line per robot."""
 
-    name, kind, params, explains = "bias_drift", "motion", ("heading_bias", "bias_drift"), ("turn_rate",)
+    name, kind = "bias_drift", "motion"
     extends = ("heading_bias",)  # a line per robot contains its mean
 
     def fit(self, model, meas, ref, resim=None):
@@ -161,7 +159,7 @@ class BiasDrift(Effect):
 class SpeedHeterogeneity(Effect):
     """Per-robot speed factor."""
 
-    name, kind, params, explains = "speed_heterogeneity", "motion", ("speed_factor",), ("speed",)
+    name, kind = "speed_heterogeneity", "motion"
 
     def fit(self, model, meas, ref, resim=None):
         ratio = _nanmean(meas["speed"], axis=0) / _nanmean(ref["speed"], axis=(0, 1))
@@ -191,7 +189,7 @@ class MotionNoise(Effect):
     (tracking noise, detrending).
     """
 
-    name, kind, params, explains = "motion_noise", "motion", ("sigma_omega", "sigma_v"), ("diffusion", "speed")
+    name, kind = "motion_noise", "motion"
 
     def fit(self, model, meas, ref, resim=None, iterations=3):
         target = _noise_stats(meas)
@@ -215,7 +213,7 @@ class MotionNoise(Effect):
 class SensorGain(Effect):
     """Per-robot light-sensor gain and offset."""
 
-    name, kind, params, explains = "sensor_gain", "light_sweep", ("sensor_gain", "sensor_offset"), ("gain", "offset")
+    name, kind = "sensor_gain", "light_sweep"
 
     def fit(self, model, meas, ref, resim=None):
         g = model.swarm.sensor_gain * _nanmean(meas["gain"], axis=0) / _nanmean(ref["gain"], axis=(0, 1))
@@ -226,7 +224,7 @@ class SensorGain(Effect):
 class ClockDrift(Effect):
     """Per-robot clock rate (and the within-robot trial-to-trial spread that is left)."""
 
-    name, kind, params, explains = "clock_drift", "blink", ("clock_rate",), ("toggle_rate",)
+    name, kind = "clock_drift", "blink"
 
     def fit(self, model, meas, ref, resim=None):
         c = model.swarm.clock_rate * _nanmean(meas["toggle_rate"], axis=0) / _nanmean(ref["toggle_rate"], axis=(0, 1))

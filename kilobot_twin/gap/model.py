@@ -40,8 +40,8 @@ class Conditions:
         return (self.trials, len(self.robot_ids))
 
 
-def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict, dict]:
-    """Conditions, summaries (each (K, N)) and the gridded raw data of a measured dataset."""
+def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
+    """Conditions and summaries (each (K, N)) of a measured dataset."""
     kind = ds.kind
     if kind == "motion":
         _, x = ds.grid("x_m")
@@ -51,21 +51,18 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict, dict]:
         start = _start_poses(x, y, ds.dt_s)
         cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, ds.dt_s, observed, start,
                           float(ds.meta.get("tracking_noise_m", 0.002)))
-        raw = {"x": x, "y": y}
     elif kind == "light_sweep":
         _, st = ds.grid("stimulus")
         _, rd = ds.grid("reading")
         observed = np.isfinite(rd)
         s = summaries.light_sweep(st, rd)
         cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, ds.dt_s, observed)
-        raw = {"stimulus": st, "reading": rd}
     else:
         _, led = ds.grid("led")
         observed = np.isfinite(led)
         s = summaries.blink(led, ds.dt_s)
         cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, ds.dt_s, observed)
-        raw = {"led": led}
-    return cond, s, raw
+    return cond, s
 
 
 def _start_poses(x, y, dt_s, lag_s=2.0):

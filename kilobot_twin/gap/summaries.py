@@ -47,7 +47,8 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0
     ``diffusion`` (rad^2/s) is the growth rate of the detrended heading's mean squared change
     between the two ``msd_lags_s``: tracking noise adds the same constant at both lags and
     cancels, the robot's heading noise (sigma_omega^2 per second) does not.
-    ``heading`` is the circular mean heading.
+    ``heading`` is the circular mean heading. (For single tracks with irregular sample times,
+    :func:`kilobot_twin.analysis.turn_rate_from_track` does the turn rate and speed.)
     """
     L = max(1, int(round(lag_s / dt_s)))
     dx = x[..., L:] - x[..., :-L]

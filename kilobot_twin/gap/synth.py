@@ -120,6 +120,18 @@ def _hidden_traits(kind, effects, n, rng):
     return tr, extra
 
 
+def _tracks(ids, t, keep, **columns) -> dict:
+    """Per-(trial, robot) tracks of the observed samples.
+
+    ``keep`` is (K, N, T); ``t`` and each column are (K, N, T) or (T,) (the same for all).
+    """
+    K, N, T = keep.shape
+    full = {name: np.broadcast_to(v, keep.shape) for name, v in columns.items()}
+    t = np.broadcast_to(t, keep.shape)
+    return {(k, int(rid)): measured.Track(t[k, j, keep[k, j]], {c: v[k, j, keep[k, j]] for c, v in full.items()})
+            for k in range(K) for j, rid in enumerate(ids)}
+
+
 def motion_scenario(duration_s: float, dt_s: float, floor_tilt: dict | None = None):
     doc = {"behavior": "straight", "dt_s": dt_s, "duration_s": duration_s, "tick_hz": 31.0}
     if floor_tilt:
@@ -137,11 +149,7 @@ def _motion(swarm, K, T, dt, seed, tilt, obs, rng):
     shape = x.shape
     keep = obs.mask(shape, dt, rng)
     t = jittered_times(res.t_s, shape, obs, rng)
-    tracks = {}
-    for k in range(K):
-        for j, rid in enumerate(swarm.ids):
-            m = keep[k, j]
-            tracks[(k, int(rid))] = measured.Track(t[k, j, m], {"x_m": x[k, j, m], "y_m": y[k, j, m]})
+    tracks = _tracks(swarm.ids, t, keep, x_m=x, y_m=y)
     meta = {"kind": "motion", "dt_s": dt, "behavior": "straight", "nominal_speed_m_s": FORWARD_SPEED_M_S,
             "tracking_noise_m": obs.tracking_noise_m}
     return tracks, meta
@@ -160,11 +168,7 @@ def _light_sweep(swarm, K, T, dt, seed, obs, rng):
     stim = sc.light.v_value(t)
     keep = rng.random(res.traj["reading"].shape) >= obs.drop_p
     keep[..., 0] = True
-    tracks = {}
-    for k in range(K):
-        for j, rid in enumerate(swarm.ids):
-            m = keep[k, j]
-            tracks[(k, int(rid))] = measured.Track(t[m], {"stimulus": stim[m], "reading": res.traj["reading"][k, j, m]})
+    tracks = _tracks(swarm.ids, t, keep, stimulus=stim, reading=res.traj["reading"])
     return tracks, {"kind": "light_sweep", "dt_s": dt, "sweep": "one ramp of V from 0 to 1 per trial"}
 
 
@@ -180,10 +184,6 @@ def _blink(swarm, K, T, dt, seed, obs, rng):
     t = res.t_s
     keep = rng.random(res.traj["led"].shape) >= obs.drop_p
     keep[..., 0] = True
-    tracks = {}
-    for k in range(K):
-        for j, rid in enumerate(swarm.ids):
-            m = keep[k, j]
-            tracks[(k, int(rid))] = measured.Track(t[m], {"led": res.traj["led"][k, j, m].astype(float)})
+    tracks = _tracks(swarm.ids, t, keep, led=res.traj["led"].astype(float))
     meta = {"kind": "blink", "dt_s": dt, "half_period_ticks": 30, "nominal_tick_hz": 31.0}
     return tracks, meta

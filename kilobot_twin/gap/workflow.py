@@ -271,7 +271,7 @@ def _boot(rng, values_fn, n, B):
 def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = None, log=print) -> dict:
     """Run the workflow on one dataset; returns the report section and the final model."""
     t0 = time.perf_counter()
-    cond, meas, _ = measured_summaries(ds)
+    cond, meas = measured_summaries(ds)
     kind = ds.kind
     meas["_trials"] = np.arange(cond.trials)
     fit_base = base is None

@@ -198,24 +198,20 @@ def repair_bag(bag_dir: str | Path) -> dict:
         reader = StreamReader(f, skip_magic=False, emit_chunks=True, validate_crcs=True)
         try:
             for rec in reader.records:
-                if isinstance(rec, Schema):
-                    schemas[rec.id] = rec
-                elif isinstance(rec, Channel):
-                    channels[rec.id] = rec
-                elif isinstance(rec, Metadata):
-                    metadata.append(rec)
-                elif isinstance(rec, Message):
-                    messages.append(rec)
-                elif isinstance(rec, Chunk):
-                    inner = _chunk_records(rec)
+                if isinstance(rec, Chunk):
+                    inner = _chunk_records(rec)  # raises on a cut-off chunk: it is not counted
                     complete_chunks += 1
-                    for r in inner:
-                        if isinstance(r, Schema):
-                            schemas[r.id] = r
-                        elif isinstance(r, Channel):
-                            channels[r.id] = r
-                        elif isinstance(r, Message):
-                            messages.append(r)
+                else:
+                    inner = [rec]
+                for r in inner:
+                    if isinstance(r, Schema):
+                        schemas[r.id] = r
+                    elif isinstance(r, Channel):
+                        channels[r.id] = r
+                    elif isinstance(r, Metadata):
+                        metadata.append(r)
+                    elif isinstance(r, Message):
+                        messages.append(r)
         except Exception as exc:  # the truncated tail: stop at the first incomplete record
             error = f"{type(exc).__name__}: {exc}"
     w = BagWriter.__new__(BagWriter)
