@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
@@ -24,47 +25,42 @@ def ms_to_ticks(ms: float, tick_hz: float) -> int:
     return int(math.floor(ms * tick_hz / 1000.0 + 1e-9))
 
 
-@dataclass(frozen=True)
-class Straight:
-    """Drive forward with both wheels at the straight calibration values, forever."""
+class _Fixed:
+    """A behaviour without state that always commands the same motion (``MOTION``)."""
 
-    name: str = field(default="straight", init=False)
-    needs_light: bool = field(default=False, init=False)
+    MOTION: ClassVar[int] = STOP
 
     def init_state(self, shape, reading0, tick_hz):
         return {}
 
     def decide(self, st, now, reading, keys, step, tick_hz):
-        return np.full(np.shape(now), FORWARD, dtype=np.int8)
+        return np.full(np.shape(now), self.MOTION, dtype=np.int8)
 
 
 @dataclass(frozen=True)
-class Blink:
+class Straight(_Fixed):
+    """Drive forward with both wheels at the straight calibration values, forever."""
+
+    MOTION: ClassVar[int] = FORWARD
+    name: str = field(default="straight", init=False)
+    needs_light: bool = field(default=False, init=False)
+
+
+@dataclass(frozen=True)
+class Blink(_Fixed):
     """Stand still; the LED program is driven by the clock (see :mod:`.clocks`)."""
 
     half_period_ticks: int = 30
     name: str = field(default="blink", init=False)
     needs_light: bool = field(default=False, init=False)
 
-    def init_state(self, shape, reading0, tick_hz):
-        return {}
-
-    def decide(self, st, now, reading, keys, step, tick_hz):
-        return np.full(np.shape(now), STOP, dtype=np.int8)
-
 
 @dataclass(frozen=True)
-class Still:
+class Still(_Fixed):
     """Stand still and measure light every step (a robot under the projector, paper Fig. 8)."""
 
     name: str = field(default="still", init=False)
     needs_light: bool = field(default=True, init=False)
-
-    def init_state(self, shape, reading0, tick_hz):
-        return {}
-
-    def decide(self, st, now, reading, keys, step, tick_hz):
-        return np.full(np.shape(now), STOP, dtype=np.int8)
 
 
 @dataclass(frozen=True)
