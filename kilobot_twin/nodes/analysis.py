@@ -9,18 +9,22 @@ Publishes at ``rate_hz`` (std_msgs/Float64 unless noted), under ``/analysis/``:
 - ``covered_area_m2``: area of the arena's coverage cells visited by any robot so far;
 - ``robots`` (std_msgs/UInt32): robots heard from.
 
-Robots are discovered on the graph (late joiners included); the scenario (light centre,
-arena, blink period) comes from the world's transient-local document.
+Robots are discovered on the graph (late joiners included). The robots of a batched ``swarm``
+process are read from its ``robots`` cloud (one message per step for the whole swarm; the
+swarm's transient-local ``members`` says which robots it covers), every other robot from its
+own ``pose``, ``led`` and ``clock`` topics. The scenario (light centre, arena, blink period)
+comes from the world's transient-local document.
 """
 
 from __future__ import annotations
 
+import json
 import re
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
-from sensor_msgs.msg import TimeReference
+from sensor_msgs.msg import PointCloud2, TimeReference
 from std_msgs.msg import ColorRGBA, Float64, String, UInt32
 
 from ..core import clocks
@@ -32,6 +36,7 @@ from ..ros.scenarios import parse_world_document, scenario_from_document
 
 PROG = "kilobot-twin analysis"
 ROBOT_TOPIC = re.compile(r"^(?:.*/)?kilobot_(\d+)/(pose|led|clock)$")
+SWARM_MEMBERS = re.compile(r"^((?:.*/)?swarm[^/]*)/members$")
 METRICS = ("led_red_fraction", "led_blue_fraction", "order_parameter", "mean_distance_to_light_m", "covered_area_m2")
 
 
@@ -66,6 +71,8 @@ class AnalysisNode(Node):
         self._visited_x: list[float] = []
         self._visited_y: list[float] = []
         self.subscribed: set[str] = set()
+        self.covered: set[int] = set()  # robots read from a swarm's cloud
+        self._robot_subs: dict[int, list] = {}
         self.pubs = {m: self.create_publisher(Float64, f"~/{m}", 10) for m in METRICS}
         self.pub_robots = self.create_publisher(UInt32, "~/robots", 10)
         self.latest: dict = {}
@@ -78,22 +85,51 @@ class AnalysisNode(Node):
 
     def _discover(self) -> None:
         for topic, _ in self.get_topic_names_and_types():
+            if topic in self.subscribed:
+                continue
+            m = SWARM_MEMBERS.match(topic)
+            if m:
+                self.subscribed.add(topic)
+                self.create_subscription(String, topic, lambda msg, base=m.group(1): self._on_members(base, msg),
+                                         qos.LATCHED)
+                continue
             m = ROBOT_TOPIC.match(topic)
-            if not m or topic in self.subscribed:
+            if not m or int(m.group(1)) in self.covered:
                 continue
             self.subscribed.add(topic)
             rid, kind = int(m.group(1)), m.group(2)
             # Raw subscriptions: the few numbers needed are read from the CDR bytes directly
             # (no message object per sample; a swarm sends thousands per second).
             if kind == "pose":
-                self.create_subscription(PoseStamped, topic, lambda data, r=rid: self._on_pose(r, data), qos.DATA,
-                                         raw=True)
+                sub = self.create_subscription(PoseStamped, topic, lambda data, r=rid: self._on_pose(r, data),
+                                               qos.DATA, raw=True)
             elif kind == "led":
-                self.create_subscription(ColorRGBA, topic, lambda data, r=rid: self.led.__setitem__(
+                sub = self.create_subscription(ColorRGBA, topic, lambda data, r=rid: self.led.__setitem__(
                     r, convert.led_from_cdr(data)), qos.DATA, raw=True)
             else:
-                self.create_subscription(TimeReference, topic, lambda data, r=rid: self.ticks.__setitem__(
+                sub = self.create_subscription(TimeReference, topic, lambda data, r=rid: self.ticks.__setitem__(
                     r, convert.ticks_from_clock_cdr(data, self.scenario.tick_hz)), qos.DATA, raw=True)
+            self._robot_subs.setdefault(rid, []).append(sub)
+
+    def _on_members(self, base: str, msg: String) -> None:
+        """A swarm covers these robots: read them from its cloud, not from their own topics."""
+        ids = {int(i) for i in json.loads(msg.data).get("robots", [])}
+        for rid in ids - self.covered:
+            for sub in self._robot_subs.pop(rid, []):
+                self.destroy_subscription(sub)
+        self.covered |= ids
+        self.create_subscription(PointCloud2, base + "/robots", self._on_cloud, qos.DATA, raw=True)
+
+    def _on_cloud(self, data: bytes) -> None:
+        _stamp, pts = convert.robot_cloud_from_cdr(data)
+        ids = pts["id"].tolist()
+        x, y = pts["x"].tolist(), pts["y"].tolist()
+        self.x.update(zip(ids, x))
+        self.y.update(zip(ids, y))
+        self.led.update(zip(ids, pts["led"].tolist()))
+        self.ticks.update(zip(ids, pts["ticks"].tolist()))
+        self._visited_x += x
+        self._visited_y += y
 
     def _on_pose(self, rid: int, data: bytes) -> None:
         x, y = convert.pose_xy_from_cdr(data)

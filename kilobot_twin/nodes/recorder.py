@@ -1,7 +1,7 @@
 """``recorder``: every robot, world and analysis topic into a rosbag2-layout MCAP bag.
 
 Parameters: ``out`` (bag directory, default ``bags/<UTC time>``), ``topics`` (comma-separated
-prefixes, default ``/kilobot_,/world,/analysis,/clock``), ``discovery_period_s`` (how often
+prefixes, default ``/kilobot_,/swarm,/world,/analysis,/clock``), ``discovery_period_s`` (how often
 the graph is searched for new topics: robots that join late are picked up),
 ``chunk_bytes``, ``compression`` (zstd, lz4, none), ``ack_every``.
 
@@ -52,7 +52,7 @@ class RecorderNode(Node):
         super().__init__("recorder", context=context, parameter_overrides=parameter_overrides, **kwargs)
         default_out = "bags/" + datetime.now(timezone.utc).strftime("%Y%m%d_%H%M%S")
         self.out = params.text(self, "out", default_out)
-        self.prefixes = [p.strip() for p in params.text(self, "topics", "/kilobot_,/world,/analysis,/clock").split(",")
+        self.prefixes = [p.strip() for p in params.text(self, "topics", "/kilobot_,/swarm,/world,/analysis,/clock").split(",")
                          if p.strip()]
         period = params.number(self, "discovery_period_s", 0.2, minimum=0.0, strict=True)
         chunk = params.integer(self, "chunk_bytes", DEFAULT_CHUNK_BYTES, minimum=1024)
@@ -70,7 +70,7 @@ class RecorderNode(Node):
         self.joined: list[tuple[str, int]] = []
         # Acknowledgements: robot data messages written, published every `ack_every` messages and
         # at 20 Hz when it changed (the world lets lockstep run ahead of it by a bounded lag).
-        self.ack_every = params.integer(self, "ack_every", 100, minimum=1)
+        self.ack_every = params.integer(self, "ack_every", 500, minimum=1)
         self.robot_messages = 0
         self._acked = 0
         self.pub_recorded = self.create_publisher(UInt64, "~/recorded", qos.CLOCK)

@@ -34,7 +34,7 @@ from std_msgs.msg import ColorRGBA, String
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
 from ..ros.model import RobotModel, SwarmModel
-from ..ros.scenarios import parse_world_document, scenario_from_document
+from ..ros.scenarios import clock_period_from_document, parse_world_document, scenario_from_document
 
 PROG = "kilobot-twin robot"
 
@@ -81,6 +81,8 @@ class RobotNode(Node):
         self.start_wall_ns = 0
         self.timer = None
         self.published = 0
+        self.clocks_published = 0
+        self.clock_period_s = 0.0
         self.done = False
         if standalone:
             self.create_subscription(String, f"{self.world}/scenario", self._on_world_msg, qos.LATCHED)
@@ -95,6 +97,7 @@ class RobotNode(Node):
             return
         self.scenario = scenario_from_document(doc).replace(behavior=self.behavior)
         self.mode = doc.get("mode", "lockstep")
+        self.clock_period_s = clock_period_from_document(doc)
         if shared is not None:
             self.model, self.col = shared
         else:
@@ -128,13 +131,17 @@ class RobotNode(Node):
     def publish_sample(self, stamp_ns: int) -> None:
         """Publish this robot's state (serialized CDR, see :func:`convert.robot_cdr`)."""
         pose, light, led, clock = self.model.serialized(stamp_ns, slice(self.col, self.col + 1))
-        self.publish_serialized(pose[0], light[0], led[0], clock[0])
+        with_clock = bool(convert.clock_steps(self.model.step_index, self.scenario.dt_s, self.clock_period_s))
+        self.publish_serialized(pose[0], light[0], led[0], clock[0] if with_clock else None)
 
-    def publish_serialized(self, pose: bytes, light: bytes, led: bytes, clock: bytes) -> None:
-        # Pose last: the world takes a pose as "this robot has published this step".
+    def publish_serialized(self, pose: bytes, light: bytes, led: bytes, clock: bytes | None) -> None:
+        """One step's messages (``clock`` None: not a clock step). Pose last: the world takes a
+        pose as "this robot has published this step"."""
         self.pub_light.publish(light)
         self.pub_led.publish(led)
-        self.pub_clock.publish(clock)
+        if clock is not None:
+            self.pub_clock.publish(clock)
+            self.clocks_published += 1
         self.pub_pose.publish(pose)
         self.published += 1
 

@@ -8,6 +8,11 @@ the process's robots is then exact in both modes),
 ``stats_file`` (JSON written at exit: messages published, CPU, memory),
 ``crash_after_steps`` (fault injection for tests: the process dies after that many steps).
 
+A batched swarm also publishes ``~/members`` (std_msgs/String JSON, transient-local: the ids
+it covers) and, after its robots' messages of each step, ``~/robots`` (sensor_msgs/PointCloud2,
+one point per robot: see :mod:`kilobot_twin.ros.convert`); the world's lockstep handshake and
+the analysis read these instead of every robot's topics.
+
 The robots are lean nodes (no parameter services, no rosout) and run their behaviour with
 the world's scenario (the behaviour of the scenario document, unless ``behavior`` is set).
 The process spins in the EventsExecutor.
@@ -25,6 +30,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import String
 
 from ..core import behaviors as B
@@ -77,6 +83,7 @@ class SwarmNode(Node):
         self.create_subscription(String, f"{self.world}/scenario", self._on_world, qos.LATCHED)
         self.create_subscription(String, f"{self.world}/state", self._on_state, qos.LATCHED)
         self.create_subscription(Clock, "/clock", self._on_clock, qos.CLOCK)
+        self.pub_members = self.pub_cloud = None
 
     # --- robots ---------------------------------------------------------------------------------
 
@@ -98,6 +105,10 @@ class SwarmNode(Node):
         if self.batched:
             self.model = SwarmModel(scenario, self.traits, self.seed, self.run, self.trial,
                                     max(self.n_robots, int(doc.get("robots", 0))))
+            # Announced before the robots exist, so that nobody counts a robot both ways.
+            self.pub_cloud = self.create_publisher(PointCloud2, "~/robots", qos.DATA)
+            self.pub_members = self.create_publisher(String, "~/members", qos.LATCHED)
+            self.pub_members.publish(convert.members_msg(self.traits.ids))
         for col, rid in enumerate(self.traits.ids):
             tr = self.traits.robot(col)
             overrides = [Parameter(k, value=v) for k, v in common + [("robot_id", int(rid))]]
@@ -175,18 +186,24 @@ class SwarmNode(Node):
 
     def _publish_all(self, stamp_ns) -> None:
         """Every robot's messages of the current step, serialized in one vectorised call."""
-        for r, msgs in zip(self.robots, zip(*self.model.serialized(stamp_ns))):
+        pose, light, led, clock = self.model.serialized(stamp_ns)
+        if not convert.clock_steps(self.model.step_index, self.model.scenario.dt_s, self.robots[0].clock_period_s):
+            clock = [None] * len(pose)
+        for r, *msgs in zip(self.robots, pose, light, led, clock):
             r.publish_serialized(*msgs)
+        self.pub_cloud.publish(self.model.cloud(stamp_ns))
 
     # --- report ------------------------------------------------------------------------------------------------
 
     def stats(self) -> dict:
         per_robot = {int(r.robot_id): r.published for r in self.robots}
         total = sum(per_robot.values())
+        clocks = sum(r.clocks_published for r in self.robots)
         return {
             "robots": len(self.robots), "mode": self.mode, "batched": self.model is not None,
-            "samples_published": total, "messages_published": 4 * total, "per_robot_samples": per_robot,
+            "samples_published": total, "messages_published": 3 * total + clocks, "per_robot_samples": per_robot,
             "topics_per_robot": ["pose", "light", "led", "clock"],
+            "published_per_topic": {"pose": total, "light": total, "led": total, "clock": clocks},
             "wall_s": time.monotonic() - self.t_start, "cpu_s": time.process_time() - self.cpu_start,
             "rss_bytes": _rss_bytes(), "rss_before_robots_bytes": self.rss_before_robots,
             "rss_after_robots_bytes": self.rss_after_robots, "late_steps": self.late_steps,

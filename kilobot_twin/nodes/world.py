@@ -3,7 +3,9 @@
 Publishes (node ``world``, private names):
 
 - ``~/scenario`` (std_msgs/String, transient-local): the scenario document (JSON: scenario,
-  seed, run, robots, mode), from which robots rebuild exactly the batch engine's scenario;
+  seed, run, robots, mode, and ``clock_period_s``: simulated seconds between a robot's
+  ``clock`` messages, parameter of the same name, default 1 s, 0 = every step), from which
+  robots rebuild exactly the batch engine's scenario;
 - ``~/light_field`` (sensor_msgs/Image 32FC1, transient-local): the field's intensity on a
   raster over the arena (row 0 = top = +y), once, and again whenever it changes
   (time-varying fields, at most ``field_rate_hz`` per simulated second);
@@ -12,11 +14,13 @@ Publishes (node ``world``, private names):
 
 Start gate: the world waits until ``robots`` robots are on the graph and every node named in
 ``wait_for_nodes`` (comma-separated, e.g. ``recorder,analysis``) subscribes to each robot's
-``wait_topics`` (default ``pose,light,led,clock``), so that a recording holds every message,
+``wait_topics`` (default ``pose,light,led,clock,robots``; ``robots`` is a batched swarm's cloud), so that a recording holds every message,
 then ``settle_s`` more. Then:
 
 - ``lockstep``: publish /clock for step k once every robot has published its pose for step
-  ``k - window_steps`` (``window_steps=1``: strictly one step at a time; a window hides the
+  ``k - window_steps`` (a robot of a batched ``swarm`` process counts as published when its
+  swarm's ``robots`` cloud of that step arrives: one message per swarm and step instead of one
+  per robot; see ``swarm``) (``window_steps=1``: strictly one step at a time; a window hides the
   round trip, robots still take the steps in order, so the result equals the batch engine's
   either way) and, when the recorder is awaited, once the recorder acknowledges (on
   ``/recorder/recorded``) every robot message up to step ``k - recorder_lag_steps``; the run
@@ -35,7 +39,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 from geometry_msgs.msg import PoseStamped
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import Image, PointCloud2
 from std_msgs.msg import String, UInt64
 
 from ..core.scenario import Scenario, scenario_from_dict
@@ -47,7 +51,10 @@ from ..ros.scenarios import NAMED, named_scenario, world_document
 
 PROG = "kilobot-twin world"
 ROBOT_TOPIC = re.compile(r"^(?:.*/)?kilobot_(\d+)/(pose|light|led|clock)$")
+#: A batched swarm process's member list (transient-local); its cloud is the sibling ``robots``.
+SWARM_MEMBERS = re.compile(r"^((?:.*/)?swarm[^/]*)/members$")
 DATA_TOPICS = ("pose", "light", "led", "clock")
+SWARM_TOPICS = ("robots",)
 
 
 class WorldNode(Node):
@@ -61,7 +68,7 @@ class WorldNode(Node):
         self.run = params.integer(self, "run", 0, minimum=0)
         self.n_robots = params.integer(self, "robots", 1, minimum=0)
         self.wait_for_nodes = [s for s in params.text(self, "wait_for_nodes", "").split(",") if s.strip()]
-        self.wait_topics = [s.strip() for s in params.text(self, "wait_topics", ",".join(DATA_TOPICS)).split(",")
+        self.wait_topics = [s.strip() for s in params.text(self, "wait_topics", ",".join(DATA_TOPICS + SWARM_TOPICS)).split(",")
                             if s.strip()]
         self.settle_s = params.number(self, "settle_s", 0.5, minimum=0.0)
         self.field_pixels = int(params.integer(self, "field_pixels", 128, minimum=2))
@@ -69,12 +76,17 @@ class WorldNode(Node):
         self.clock_hz = params.number(self, "clock_hz", 10.0, minimum=0.0, strict=True)
         self.linger_s = params.number(self, "linger_s", 0.5, minimum=0.0)
         self.stats_file = params.text(self, "stats_file", "")
-        self.window_steps = params.integer(self, "window_steps", 8, minimum=1)
+        self.window_steps = params.integer(self, "window_steps", 32, minimum=1)
         self.recorder_lag_steps = params.integer(self, "recorder_lag_steps", 60, minimum=1)
         self.ack_timeout_s = params.number(self, "ack_timeout_s", 5.0, minimum=0.0, strict=True)
+        self.clock_period_s = params.number(self, "clock_period_s", 1.0, minimum=0.0)
         self.await_recorder = "recorder" in self.wait_for_nodes and self.mode == "lockstep"
         self.scenario = self._scenario(name, path, duration)
         self.n_steps = self.scenario.n_steps
+        # One robot's data messages after each step: pose, light, led every step, clock on clock steps.
+        steps = np.arange(self.n_steps + 1)
+        self._messages_through = 3 * (steps + 1) + np.cumsum(convert.clock_steps(steps, self.scenario.dt_s,
+                                                                                  self.clock_period_s))
 
         self.pub_doc = self.create_publisher(String, "~/scenario", qos.LATCHED)
         self.pub_state = self.create_publisher(String, "~/state", qos.LATCHED)
@@ -83,7 +95,7 @@ class WorldNode(Node):
         if self.await_recorder:
             self.create_subscription(UInt64, "/recorder/recorded", self._on_recorded, qos.CLOCK)
         self.pub_doc.publish(convert.json_msg(world_document(self.scenario, self.seed, self.run, self.n_robots,
-                                                             self.mode)))
+                                                             self.mode, self.clock_period_s)))
         self._publish_state("waiting")
         self._raster = self._field_raster(0.0)
         self.pub_field.publish(convert.field_image_msg(self._raster, 0))
@@ -93,7 +105,10 @@ class WorldNode(Node):
         self.robots: dict[int, str] = {}  # id -> pose topic
         self.step = -1  # last step published on /clock
         self.complete = -1  # last step every robot has published its pose for
-        self.reported: dict[int, int] = {}  # step -> poses received
+        self.reported: dict[int, int] = {}  # step -> robots heard from (poses, or clouds x members)
+        self.swarms: dict[str, set[int] | None] = {}  # swarm topic base -> its member ids (None: not yet heard)
+        self.covered: set[int] = set()  # robots that a swarm's cloud reports for
+        self._pose_subs: dict[int, object] = {}
         self.recorded = 0  # robot messages the recorder acknowledged
         self._ack_progress_at = time.monotonic()
         self._ack_warned = False
@@ -152,9 +167,15 @@ class WorldNode(Node):
                 rid = int(m.group(1))
                 self.robots[rid] = topic
                 if self.mode == "lockstep":
-                    self.create_subscription(PoseStamped, topic, lambda data, rid=rid: self._on_pose(rid, data),
-                                             qos.DATA, raw=True)
-        ready = len(self.robots) >= self.n_robots and self._subscribers_ready()
+                    self._pose_subs[rid] = self.create_subscription(
+                        PoseStamped, topic, lambda data, rid=rid: self._on_pose(rid, data), qos.DATA, raw=True)
+            m = SWARM_MEMBERS.match(topic)
+            if m and m.group(1) not in self.swarms:
+                base = m.group(1)
+                self.swarms[base] = None
+                self.create_subscription(String, topic, lambda msg, base=base: self._on_members(base, msg), qos.LATCHED)
+        ready = (len(self.robots) >= self.n_robots and all(v is not None for v in self.swarms.values())
+                 and self._subscribers_ready())
         if not ready:
             self._gate_since = None
             return
@@ -168,15 +189,29 @@ class WorldNode(Node):
     def _subscribers_ready(self) -> bool:
         if not self.wait_for_nodes:
             return True
-        for topic in self.robots.values():
-            base = topic[: -len("pose")]
-            for suffix in self.wait_topics:
-                names = {i.node_name for i in self.get_subscriptions_info_by_topic(base + suffix)}
-                if not all(n in names for n in self.wait_for_nodes):
-                    return False
+        topics = [topic[: -len("pose")] + suffix for topic in self.robots.values() for suffix in self.wait_topics
+                  if suffix in DATA_TOPICS]
+        topics += [f"{base}/{suffix}" for base in self.swarms for suffix in self.wait_topics if suffix in SWARM_TOPICS]
+        for topic in topics:
+            names = {i.node_name for i in self.get_subscriptions_info_by_topic(topic)}
+            if not all(n in names for n in self.wait_for_nodes):
+                return False
         return True
 
+    def _on_members(self, base: str, msg: String) -> None:
+        if self.swarms.get(base) is not None or self.step >= 0:
+            return  # a swarm's members are fixed; and once running, the counting is too
+        ids = {int(i) for i in json.loads(msg.data).get("robots", [])}
+        self.swarms[base] = ids
+        self.covered |= ids
+        if self.mode == "lockstep":
+            self.create_subscription(PointCloud2, base + "/robots",
+                                     lambda data, base=base: self._on_cloud(base, data), qos.DATA, raw=True)
+
     def _start(self) -> None:
+        # Robots of a swarm are counted by their swarm's cloud: their pose subscriptions go.
+        for rid in self.covered & set(self._pose_subs):
+            self.destroy_subscription(self._pose_subs.pop(rid))
         self.start_wall_ns = time.time_ns()
         self._ack_progress_at = time.monotonic()
         self._publish_state("running", start_wall_ns=self.start_wall_ns, robots=sorted(self.robots))
@@ -202,13 +237,21 @@ class WorldNode(Node):
             self._wait_for_recorder_then_finish()
 
     def _on_pose(self, rid: int, data: bytes) -> None:
+        if rid not in self.covered:
+            self._report(data, 1)
+
+    def _on_cloud(self, base: str, data: bytes) -> None:
+        self._report(data, len(self.swarms[base] & self.robots.keys()))
+
+    def _report(self, data: bytes, robots: int) -> None:
+        """``robots`` robots have published the step in the stamp of ``data``."""
         if self.step < 0 or self.end_wall_ns:
             return
         stamp = convert.stamp_ns_from_cdr(data)
         k = int(round(stamp / (self.scenario.dt_s * convert.NS_PER_S)))
         if k <= self.complete or k > self.step or stamp != convert.step_stamp_ns(k, self.scenario.dt_s):
             return
-        self.reported[k] = self.reported.get(k, 0) + 1
+        self.reported[k] = self.reported.get(k, 0) + robots
         advanced = False
         while self.reported.get(self.complete + 1, 0) >= len(self.robots):
             self.complete += 1
@@ -224,8 +267,13 @@ class WorldNode(Node):
         ``step - recorder_lag_steps`` (robots keep 200 messages per topic: nothing is overwritten)."""
         if not self.await_recorder or self._ack_timed_out():
             return True
-        needed = len(DATA_TOPICS) * len(self.robots) * (step - self.recorder_lag_steps + 1)
-        return self.recorded >= needed
+        return self.recorded >= self._robot_messages_through(step - self.recorder_lag_steps)
+
+    def _robot_messages_through(self, step: int) -> int:
+        """Data messages all robots have published after step ``step``."""
+        if step < 0:
+            return 0
+        return len(self.robots) * int(self._messages_through[min(step, self.n_steps)])
 
     def _ack_timed_out(self) -> bool:
         if time.monotonic() - self._ack_progress_at < self.ack_timeout_s:
@@ -246,14 +294,14 @@ class WorldNode(Node):
     def _wait_for_recorder_then_finish(self) -> None:
         if self.end_wall_ns or self._finish_timer is not None:
             return
-        total = len(DATA_TOPICS) * len(self.robots) * (self.n_steps + 1)
+        total = self._robot_messages_through(self.n_steps)
         if not self.await_recorder or self.recorded >= total or self._ack_timed_out():
             self._finish()
         elif self._finish_timer is None:
             self._finish_timer = self.create_timer(0.01, self._check_finish)
 
     def _check_finish(self) -> None:
-        total = len(DATA_TOPICS) * len(self.robots) * (self.n_steps + 1)
+        total = self._robot_messages_through(self.n_steps)
         if self.recorded >= total or self._ack_timed_out():
             self._finish_timer.cancel()
             self._finish()

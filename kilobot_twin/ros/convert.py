@@ -9,13 +9,23 @@ Robot topics (namespace ``kilobot_<id>``, frame ``arena``):
 ``led``      std_msgs/ColorRGBA         red (1,0,0,1), blue (0,0,1,1), off (0,0,0,0)
 ``clock``    sensor_msgs/TimeReference  ``time_ref`` = the robot's own clock, kilo_ticks /
                                         31 Hz; ``header.stamp`` = world time (clock drift is
-                                        ``time_ref - stamp``)
+                                        ``time_ref - stamp``); at step 0 and then once per
+                                        ``clock_period_s`` of simulated time (world document,
+                                        default 1 s; 0 = every step): see
+                                        :func:`clock_steps`
 ``traits``   std_msgs/String            JSON: id, traits, behaviour, seed, run (transient-local)
 ===========  =========================  =====================================================
+
+A batched ``swarm`` process also publishes all its robots' state of a step as one
+sensor_msgs/PointCloud2 (``/swarm/robots``, one point per robot, fields :data:`CLOUD_FIELDS`,
+published after the robots' own messages of that step) and, transient-local, the ids it
+covers (``/swarm/members``, JSON): nodes that need the whole swarm each step (the world's
+lockstep handshake, the analysis) take one message per step instead of one per robot and topic.
 """
 
 from __future__ import annotations
 
+import array
 import json
 import math
 import struct
@@ -26,7 +36,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Illuminance, Image, TimeReference
+from sensor_msgs.msg import Illuminance, Image, PointCloud2, PointField, TimeReference
 from std_msgs.msg import ColorRGBA, String
 
 from ..core.constants import LED_BLUE, LED_OFF, LED_RED
@@ -87,6 +97,19 @@ def stamp_ns_from_cdr(data: bytes) -> int:
     little = data[1] == 1
     sec, nsec = struct.unpack_from("<iI" if little else ">iI", data, 4)
     return sec * NS_PER_S + nsec
+
+
+def clock_steps(steps, dt_s: float, period_s: float) -> np.ndarray:
+    """Whether a robot publishes its ``clock`` at each of ``steps`` (step indices): at step 0 and at
+    the first step of every new ``period_s`` of simulated time (in integer ns, so that robots, the
+    world and the recorder agree exactly); every step when ``period_s <= 0``."""
+    k = np.asarray(steps, dtype=np.int64)
+    if period_s <= 0:
+        return np.ones(k.shape, dtype=bool)
+    p = int(round(period_s * NS_PER_S))
+    t = np.rint(k * dt_s * NS_PER_S).astype(np.int64)
+    t_prev = np.rint((k - 1) * dt_s * NS_PER_S).astype(np.int64)
+    return (k == 0) | (t // p != t_prev // p)
 
 
 # --- robot messages ------------------------------------------------------------------------
@@ -277,6 +300,69 @@ def ticks_from_clock_cdr(data: bytes, tick_hz: float) -> float:
     return (sec * NS_PER_S + nsec) / NS_PER_S * tick_hz
 
 
+# --- the swarm's state of a step as one PointCloud2 --------------------------------------------------
+
+#: One point per robot: (name, numpy format, PointField datatype), packed in this order.
+CLOUD_FIELDS = (("id", "<u4", PointField.UINT32), ("led", "<u4", PointField.UINT32),
+                ("x", "<f8", PointField.FLOAT64), ("y", "<f8", PointField.FLOAT64), ("z", "<f8", PointField.FLOAT64),
+                ("theta", "<f8", PointField.FLOAT64), ("reading", "<f8", PointField.FLOAT64),
+                ("ticks", "<f8", PointField.FLOAT64))
+CLOUD_DTYPE = np.dtype([(name, fmt) for name, fmt, _ in CLOUD_FIELDS])
+_cloud_templates: dict[int, tuple[bytes, int]] = {}
+
+
+def _cloud_template(n: int) -> tuple[bytes, int]:
+    """Serialized PointCloud2 of ``n`` zero points, stamp 0, and the offset of its point data."""
+    if n not in _cloud_templates:
+        from rclpy.serialization import serialize_message
+
+        m = PointCloud2()
+        m.header.frame_id = FRAME_ID
+        m.height, m.width = 1, n
+        offsets = np.cumsum([0] + [np.dtype(f).itemsize for _, f, _ in CLOUD_FIELDS])
+        m.fields = [PointField(name=name, offset=int(o), datatype=dt, count=1)
+                    for (name, _, dt), o in zip(CLOUD_FIELDS, offsets)]
+        m.is_bigendian = False
+        m.point_step = CLOUD_DTYPE.itemsize
+        m.row_step = n * CLOUD_DTYPE.itemsize
+        m.data = array.array("B", bytes(n * CLOUD_DTYPE.itemsize))
+        m.is_dense = True
+        raw = serialize_message(m)
+        # The point data is the last sequence, followed only by the one-byte is_dense.
+        _cloud_templates[n] = (raw, len(raw) - 1 - n * CLOUD_DTYPE.itemsize)
+    return _cloud_templates[n]
+
+
+def robot_cloud_cdr(stamp_ns: int, ids, x_m, y_m, theta_rad, reading, led, ticks) -> bytes:
+    """Serialized sensor_msgs/PointCloud2 of the robots' state (arrays over the robots; heading
+    wrapped to (-pi, pi], ticks = the robot's kilo_ticks)."""
+    ids = np.atleast_1d(np.asarray(ids))
+    pts = np.zeros(ids.shape[0], dtype=CLOUD_DTYPE)
+    pts["id"], pts["led"], pts["x"], pts["y"] = ids, led, x_m, y_m
+    theta_rad = np.asarray(theta_rad, dtype=np.float64)
+    pts["theta"] = np.arctan2(np.sin(theta_rad), np.cos(theta_rad))  # as the pose's quaternion holds it
+    pts["reading"], pts["ticks"] = reading, ticks
+    raw, start = _cloud_template(ids.shape[0])
+    buf = bytearray(raw)
+    struct.pack_into("<iI", buf, 4, *divmod(int(stamp_ns), NS_PER_S))
+    buf[start:start + pts.nbytes] = pts.tobytes()
+    return bytes(buf)
+
+
+def robot_cloud_from_cdr(data: bytes) -> tuple[int, np.ndarray]:
+    """(stamp ns, points as a :data:`CLOUD_DTYPE` array) of a serialized robot cloud."""
+    _check_le(data)
+    start = 4 + _align(_header_end(data) - 4, 4)
+    _height, width = struct.unpack_from("<II", data, start)
+    n_bytes = width * CLOUD_DTYPE.itemsize
+    return stamp_ns_from_cdr(data), np.frombuffer(data, dtype=CLOUD_DTYPE, count=width, offset=len(data) - 1 - n_bytes)
+
+
+def members_msg(ids) -> String:
+    """The ids a swarm process covers (``/swarm/members``)."""
+    return json_msg({"robots": [int(i) for i in ids]})
+
+
 # --- traits ------------------------------------------------------------------------------------
 
 def traits_to_msg(robot_id: int, traits: RobotTraits, behavior: Mapping[str, Any], seed: int, run: int) -> String:
@@ -304,7 +390,7 @@ def field_image_msg(intensity: np.ndarray, stamp_ns: int) -> Image:
     m.encoding = "32FC1"
     m.is_bigendian = 0
     m.step = 4 * img.shape[1]
-    m.data = img.tobytes()
+    m.data = array.array("B", img.tobytes())  # (bytes take the setter's per-element check)
     return m
 
 

@@ -242,4 +242,5 @@ def _fill_report(report: RunReport, swarm_stats: Path, world_stats: Path) -> Non
     if swarm_stats.is_file():
         ss = json.loads(swarm_stats.read_text())
         report.swarm_stats = ss
-        report.published = {t: ss["samples_published"] for t in ss.get("topics_per_robot", [])}
+        report.published = ss.get("published_per_topic") or {t: ss["samples_published"]
+                                                             for t in ss.get("topics_per_robot", [])}

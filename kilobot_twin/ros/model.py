@@ -14,7 +14,7 @@ import numpy as np
 from ..core import sim
 from ..core.scenario import Scenario
 from ..core.traits import RobotTraits, SwarmTraits
-from .convert import RobotSample, robot_cdr
+from .convert import RobotSample, robot_cdr, robot_cloud_cdr
 from .scenarios import start_pose
 
 
@@ -57,6 +57,12 @@ class SwarmModel:
         return robot_cdr(stamp_ns, st.x[0, cols], st.y[0, cols], st.theta[0, cols], st.reading[0, cols],
                          np.broadcast_to(self.variance, st.x.shape[1:])[cols], st.led[0, cols], st.ticks[0, cols],
                          self.scenario.tick_hz)
+
+    def cloud(self, stamp_ns: int) -> bytes:
+        """Every robot's state as one serialized PointCloud2 (see :func:`convert.robot_cloud_cdr`)."""
+        st = self.state
+        return robot_cloud_cdr(stamp_ns, self.ids, st.x[0], st.y[0], st.theta[0], st.reading[0], st.led[0],
+                               st.ticks[0])
 
 
 class RobotModel(SwarmModel):

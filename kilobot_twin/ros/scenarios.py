@@ -48,10 +48,20 @@ def named_scenario(name: str, duration_s: float | None = None, field: str = "sce
     return scenario_from_dict(data)
 
 
-def world_document(scenario: Scenario, seed: int, run: int, n_robots: int, mode: str) -> str:
-    """The JSON the world publishes once (transient-local) for robots and recordings."""
+def world_document(scenario: Scenario, seed: int, run: int, n_robots: int, mode: str,
+                   clock_period_s: float = 1.0) -> str:
+    """The JSON the world publishes once (transient-local) for robots and recordings.
+
+    ``clock_period_s``: simulated seconds between a robot's ``clock`` messages (0: every step).
+    """
     return json.dumps({"format": DOCUMENT_FORMAT, "scenario": scenario.to_dict(), "seed": int(seed), "run": int(run),
-                       "robots": int(n_robots), "mode": mode}, sort_keys=True)
+                       "robots": int(n_robots), "mode": mode, "clock_period_s": float(clock_period_s)},
+                      sort_keys=True)
+
+
+def clock_period_from_document(doc: Mapping[str, Any]) -> float:
+    """A world document's ``clock_period_s`` (documents without one: every step)."""
+    return float(doc.get("clock_period_s", 0.0))
 
 
 def parse_world_document(text: str) -> dict:

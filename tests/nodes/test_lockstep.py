@@ -42,6 +42,8 @@ def test_lockstep_equals_batch(scenario, batched):
         swarm.create_robots(g.executor)
         assert g.spin_until(lambda: world.finished.done(), 60), f"world stopped at step {world.step}"
         g.spin_until(lambda: all(len(v) == world.n_steps + 1 for v in col.poses.values()), 5)
+    # The handshake took the swarm's cloud for a batched swarm, every robot's pose otherwise.
+    assert world.covered == (set(range(N)) if batched else set())
 
     sc = named_scenario(scenario, duration)
     traits = load_swarm_traits("", N, seed)

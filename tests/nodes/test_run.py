@@ -13,6 +13,7 @@ import pytest
 
 from kilobot_twin.core import sim
 from kilobot_twin.ros.bag import mcap_path, read_metadata, summary_counts
+from kilobot_twin.ros.convert import CLOUD_DTYPE
 from kilobot_twin.ros.launcher import run_twin
 from kilobot_twin.ros.scenarios import load_swarm_traits, named_scenario
 
@@ -35,8 +36,10 @@ def test_run_lockstep_bag_equals_batch_and_holds_run_metadata(tmp_path):
     assert rerun_check(mcap_path(out)).returncode == 0
     counts = summary_counts(out)
     for i in range(4):
-        for t in ("pose", "light", "led", "clock"):
+        for t in ("pose", "light", "led"):
             assert counts[f"/kilobot_{i}/{t}"] == 31, (i, t)
+        assert counts[f"/kilobot_{i}/clock"] == 4  # once per simulated second: t = 0, 1, 2, 3 s
+    assert counts["/swarm/robots"] == 31 and counts["/swarm/members"] == 1
     meta = read_metadata(out)["kilobot_twin"]
     assert json.loads(meta["seed"]) == 5 and meta["version"]
     assert set(json.loads(meta["traits"])) == {"0", "1", "2", "3"}
@@ -50,6 +53,17 @@ def test_run_lockstep_bag_equals_batch_and_holds_run_metadata(tmp_path):
         np.testing.assert_allclose(xs, ref.traj["x"][0, i], rtol=0, atol=1e-12)
         light = [m.illuminance for t, m in msgs if t == f"/kilobot_{i}/light"]
         assert len(light) == 31
+        stamps = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for t, m in msgs if t == f"/kilobot_{i}/clock"]
+        assert stamps == [0, 10**9, 2 * 10**9, 3 * 10**9]
+    # The swarm's cloud holds the same state, one message per step.
+    clouds = [m for t, m in msgs if t == "/swarm/robots"]
+    assert [c.header.stamp.sec * 10**9 + c.header.stamp.nanosec for c in clouds] == [
+        int(round(k * sc.dt_s * 1e9)) for k in range(31)]
+    pts = np.stack([np.frombuffer(bytes(c.data), dtype=CLOUD_DTYPE) for c in clouds])  # (step, robot)
+    assert [f.name for f in clouds[0].fields] == list(CLOUD_DTYPE.names)
+    np.testing.assert_array_equal(pts["id"][0], [0, 1, 2, 3])
+    np.testing.assert_allclose(pts["x"].T, ref.traj["x"][0], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(pts["led"].T, ref.traj["led"][0])
 
 
 @pytest.mark.parametrize("args,field", [

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import PoseStamped
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import Illuminance, TimeReference
+from sensor_msgs.msg import Illuminance, PointCloud2, TimeReference
 from std_msgs.msg import ColorRGBA
 
 from kilobot_twin.core.constants import LED_BLUE, LED_OFF, LED_RED
@@ -66,3 +66,44 @@ def test_publisher_accepts_serialized_bytes():
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+def test_robot_cloud_decodes_with_rclpy_and_our_reader():
+    rng = np.random.default_rng(4)
+    n = 7
+    ids, x, y = np.arange(3, 3 + n), rng.normal(size=n), rng.normal(size=n)
+    theta = rng.uniform(-10, 10, n)  # unwrapped, as the core holds it
+    reading, led, ticks = rng.uniform(0, 1023, n), rng.integers(0, 3, n), rng.uniform(0, 1e4, n)
+    raw = convert.robot_cloud_cdr(12_345_678_901, ids, x, y, theta, reading, led, ticks)
+    m = deserialize_message(raw, PointCloud2)
+    assert convert.time_to_ns(m.header.stamp) == 12_345_678_901 and m.header.frame_id == "arena"
+    assert (m.height, m.width, m.point_step, m.row_step) == (1, n, 56, 56 * n) and m.is_dense
+    assert [(f.name, f.offset) for f in m.fields] == [(k, convert.CLOUD_DTYPE.fields[k][1])
+                                                       for k in convert.CLOUD_DTYPE.names]
+    pts = np.frombuffer(bytes(m.data), dtype=convert.CLOUD_DTYPE)
+    stamp, ours = convert.robot_cloud_from_cdr(raw)
+    assert stamp == 12_345_678_901
+    for p in (pts, ours):
+        np.testing.assert_array_equal(p["id"], ids)
+        np.testing.assert_array_equal(p["led"], led)
+        np.testing.assert_array_equal(p["x"], x)
+        np.testing.assert_array_equal(p["reading"], reading)
+        np.testing.assert_array_equal(p["ticks"], ticks)
+        np.testing.assert_allclose(np.exp(1j * p["theta"]), np.exp(1j * theta), atol=1e-12)
+        assert np.all(np.abs(p["theta"]) <= np.pi)
+    # A different swarm size gets its own layout.
+    assert convert.robot_cloud_from_cdr(convert.robot_cloud_cdr(0, [1], 0, 0, 0, 0, 0, 0))[1].shape == (1,)
+
+
+@pytest.mark.parametrize("dt,period,n_steps,expected", [
+    (0.1, 1.0, 30, [0, 10, 20, 30]),        # once per simulated second
+    (0.1, 0.0, 5, [0, 1, 2, 3, 4, 5]),      # 0: every step
+    (0.5, 0.2, 3, [0, 1, 2, 3]),            # period below the step: every step
+    (1 / 31, 1.0, 62, [0, 31, 62]),         # a step that does not divide the period
+    (0.3, 1.0, 10, [0, 4, 7, 10]),          # first step of each new second: 1.2 s, 2.1 s, 3.0 s
+])
+def test_clock_steps(dt, period, n_steps, expected):
+    mask = convert.clock_steps(np.arange(n_steps + 1), dt, period)
+    assert np.flatnonzero(mask).tolist() == expected
+    # Scalar and array calls agree (robots ask step by step, the world for all steps at once).
+    assert [bool(convert.clock_steps(k, dt, period)) for k in range(n_steps + 1)] == mask.tolist()
