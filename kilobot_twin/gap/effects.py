@@ -180,28 +180,24 @@ def _noise_stats(s):
 
 
 class MotionNoise(Effect):
-    """The population's actuation-noise level (white heading and speed noise) is refitted.
+    """The population's actuation-noise levels (white heading and speed noise) are refitted.
 
-    One scale multiplies sigma_omega and sigma_v. It is fitted to two statistics that grow
-    with the noise variance (heading diffusion; within-robot spread of trial speeds), each
-    compared as a measured/simulated ratio and weighted by its precision in the reference
-    simulations; a few fixed-point steps with re-simulation absorb what is not proportional
-    (tracking noise, detrending).
+    Two population scales, one per noise process: sigma_omega from the heading diffusion,
+    sigma_v from the within-robot spread of trial speeds (both grow with their noise's
+    variance). Each is moved by the square root of its measured/simulated ratio; a few
+    fixed-point steps with re-simulation absorb what is not proportional (tracking noise,
+    detrending, heading noise shortening the lagged displacement).
     """
 
     name, kind = "motion_noise", "motion"
 
     def fit(self, model, meas, ref, resim=None, iterations=3):
-        target = _noise_stats(meas)
+        target = _noise_stats(meas)  # (diffusion, within-robot speed variance)
         m, cur = model, ref
         for _ in range(iterations if resim is not None else 1):
-            sims = _noise_stats(cur)  # (M, 2)
-            mean = np.nanmean(sims, axis=0)
-            rel_var = np.nanvar(sims, axis=0, ddof=1) / mean**2 + 1e-6
-            w = (1 / rel_var) / (1 / rel_var).sum()
-            log_ratio = float(np.sum(w * np.log(np.clip(target / mean, 1e-4, 1e4))))
-            scale = float(np.exp(0.5 * np.clip(log_ratio, -9.0, 9.0)))
-            m = m.with_traits(sigma_omega=m.swarm.sigma_omega * scale, sigma_v=m.swarm.sigma_v * scale)
+            ratio = np.clip(target / np.nanmean(_noise_stats(cur), axis=0), 1e-4, 1e4)
+            scale = np.sqrt(ratio)  # variance ratio -> sd scale, per process
+            m = m.with_traits(sigma_omega=m.swarm.sigma_omega * scale[0], sigma_v=m.swarm.sigma_v * scale[1])
             if resim is not None:
                 cur = resim(m)
         # The trial-to-trial bias spread keeps only what the new noise does not already explain.
