@@ -118,10 +118,15 @@ def bench_recorder(tmp: Path, rate=55_000.0, seconds=10.0, topics=10):
 
 
 def main(argv):
-    which = [a for a in argv if not a.startswith("--")] or ["lockstep", "realtime", "recorder"]
-    quick = "--quick" in argv
-    repeat = int(argv[argv.index("--repeat") + 1]) if "--repeat" in argv else (1 if quick else 5)
-    which = [a for a in which if not a.isdigit()]
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("which", nargs="*", choices=["lockstep", "realtime", "recorder"], default=[])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--repeat", type=int, default=None, help="lockstep runs (default 5, 1 with --quick)")
+    a = ap.parse_args(argv)
+    which, quick = a.which or ["lockstep", "realtime", "recorder"], a.quick
+    repeat = a.repeat if a.repeat is not None else (1 if quick else 5)
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         if "recorder" in which:

@@ -36,7 +36,6 @@ from ..ros.scenarios import parse_world_document, scenario_from_document
 
 PROG = "kilobot-twin analysis"
 ROBOT_TOPIC = re.compile(r"^(?:.*/)?kilobot_(\d+)/(pose|led|clock)$")
-SWARM_MEMBERS = re.compile(r"^((?:.*/)?swarm[^/]*)/members$")
 METRICS = ("led_red_fraction", "led_blue_fraction", "order_parameter", "mean_distance_to_light_m", "covered_area_m2")
 
 
@@ -87,7 +86,7 @@ class AnalysisNode(Node):
         for topic, _ in self.get_topic_names_and_types():
             if topic in self.subscribed:
                 continue
-            m = SWARM_MEMBERS.match(topic)
+            m = convert.SWARM_MEMBERS_TOPIC.match(topic)
             if m:
                 self.subscribed.add(topic)
                 self.create_subscription(String, topic, lambda msg, base=m.group(1): self._on_members(base, msg),
@@ -118,7 +117,7 @@ class AnalysisNode(Node):
             for sub in self._robot_subs.pop(rid, []):
                 self.destroy_subscription(sub)
         self.covered |= ids
-        self.create_subscription(PointCloud2, base + "/robots", self._on_cloud, qos.DATA, raw=True)
+        self.create_subscription(PointCloud2, convert.swarm_cloud_topic(base), self._on_cloud, qos.DATA, raw=True)
 
     def _on_cloud(self, data: bytes) -> None:
         _stamp, pts = convert.robot_cloud_from_cdr(data)

@@ -38,7 +38,8 @@ from ..core.traits import TRAIT_NAMES
 from ..ros import convert, params, qos
 from ..ros.executors import make_executor, run_node, spin
 from ..ros.model import SwarmModel
-from ..ros.scenarios import load_swarm_traits, parse_world_document, scenario_from_document
+from ..ros.scenarios import (clock_period_from_document, load_swarm_traits, parse_world_document,
+                             scenario_from_document)
 from .robot import RobotNode
 
 PROG = "kilobot-twin swarm"
@@ -84,6 +85,7 @@ class SwarmNode(Node):
         self.create_subscription(String, f"{self.world}/state", self._on_state, qos.LATCHED)
         self.create_subscription(Clock, "/clock", self._on_clock, qos.CLOCK)
         self.pub_members = self.pub_cloud = None
+        self.clock_period_s = 0.0  # from the world document
 
     # --- robots ---------------------------------------------------------------------------------
 
@@ -99,6 +101,7 @@ class SwarmNode(Node):
         behavior = scenario.behavior if not self.behavior_kind else B.BEHAVIORS[self.behavior_kind]()
         scenario = scenario.replace(behavior=behavior)
         self.mode = doc.get("mode", "lockstep")
+        self.clock_period_s = clock_period_from_document(doc)
         common = [("seed", self.seed), ("run", self.run), ("trial", self.trial), ("world", self.world),
                   ("swarm_size", max(self.n_robots, int(doc.get("robots", 0))))]
         common += params.behavior_overrides(behavior)
@@ -106,7 +109,7 @@ class SwarmNode(Node):
             self.model = SwarmModel(scenario, self.traits, self.seed, self.run, self.trial,
                                     max(self.n_robots, int(doc.get("robots", 0))))
             # Announced before the robots exist, so that nobody counts a robot both ways.
-            self.pub_cloud = self.create_publisher(PointCloud2, "~/robots", qos.DATA)
+            self.pub_cloud = self.create_publisher(PointCloud2, f"~/{convert.SWARM_CLOUD}", qos.DATA)
             self.pub_members = self.create_publisher(String, "~/members", qos.LATCHED)
             self.pub_members.publish(convert.members_msg(self.traits.ids))
         for col, rid in enumerate(self.traits.ids):
@@ -187,7 +190,7 @@ class SwarmNode(Node):
     def _publish_all(self, stamp_ns) -> None:
         """Every robot's messages of the current step, serialized in one vectorised call."""
         pose, light, led, clock = self.model.serialized(stamp_ns)
-        if not convert.clock_steps(self.model.step_index, self.model.scenario.dt_s, self.robots[0].clock_period_s):
+        if not convert.clock_steps(self.model.step_index, self.model.scenario.dt_s, self.clock_period_s):
             clock = [None] * len(pose)
         for r, *msgs in zip(self.robots, pose, light, led, clock):
             r.publish_serialized(*msgs)

@@ -51,10 +51,8 @@ from ..ros.scenarios import NAMED, named_scenario, world_document
 
 PROG = "kilobot-twin world"
 ROBOT_TOPIC = re.compile(r"^(?:.*/)?kilobot_(\d+)/(pose|light|led|clock)$")
-#: A batched swarm process's member list (transient-local); its cloud is the sibling ``robots``.
-SWARM_MEMBERS = re.compile(r"^((?:.*/)?swarm[^/]*)/members$")
 DATA_TOPICS = ("pose", "light", "led", "clock")
-SWARM_TOPICS = ("robots",)
+SWARM_TOPICS = (convert.SWARM_CLOUD,)
 
 
 class WorldNode(Node):
@@ -169,7 +167,7 @@ class WorldNode(Node):
                 if self.mode == "lockstep":
                     self._pose_subs[rid] = self.create_subscription(
                         PoseStamped, topic, lambda data, rid=rid: self._on_pose(rid, data), qos.DATA, raw=True)
-            m = SWARM_MEMBERS.match(topic)
+            m = convert.SWARM_MEMBERS_TOPIC.match(topic)
             if m and m.group(1) not in self.swarms:
                 base = m.group(1)
                 self.swarms[base] = None
@@ -205,7 +203,7 @@ class WorldNode(Node):
         self.swarms[base] = ids
         self.covered |= ids
         if self.mode == "lockstep":
-            self.create_subscription(PointCloud2, base + "/robots",
+            self.create_subscription(PointCloud2, convert.swarm_cloud_topic(base),
                                      lambda data, base=base: self._on_cloud(base, data), qos.DATA, raw=True)
 
     def _start(self) -> None:
