@@ -56,8 +56,16 @@ def main():
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default="out/eval_gap")
+    ap.add_argument("--cases", default="", help="only these cases, e.g. 'motion:bias_drift,light_sweep:none'")
+    ap.add_argument("--first-seed", type=int, default=1000)
     a = ap.parse_args()
-    jobs = [(k, h, 1000 + s, a.out) for k, h in CASES for s in range(a.seeds)]
+    cases = CASES
+    if a.cases:
+        want = {tuple(c.split(":", 1)) for c in a.cases.split(",")}
+        cases = [(k, h) for k, h in CASES if (k, h.replace(",", "+") or "none") in want]
+        if not cases:
+            ap.error(f"--cases: none of {a.cases!r} is a case; use kind:effect[+effect] or kind:none")
+    jobs = [(k, h, a.first_seed + s, a.out) for k, h in cases for s in range(a.seeds)]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(a.workers) as pool:
         rows = list(pool.map(one, jobs))

@@ -112,6 +112,11 @@ class Effect:
     name = ""
     kind = ""
     extends: tuple = ()  # effects this one contains as a special case (nested models)
+    #: How the fitted parameters predict each summary of a held-out trial: "pop" (a population
+    #: level estimated from all robots' training trials), "mean" (each robot's mean over its
+    #: training trials) or "line" (a line per robot over trial index). Sets the estimation part
+    #: of the predictive variance (see :func:`leverage`).
+    predicts: dict = {}
 
     def fit(self, model: TwinModel, meas: dict, ref: dict, resim=None) -> TwinModel:  # pragma: no cover
         """Fit on ``meas`` (summaries of some trials) given ``ref`` (summaries of the current model
@@ -123,6 +128,7 @@ class HeadingBias(Effect):
     """Persistent per-robot turn (positive = clockwise): the robot's mean bias over trials."""
 
     name, kind = "heading_bias", "motion"
+    predicts = {"turn_rate": "mean"}
 
     def fit(self, model, meas, ref, resim=None):
         b = _bias(meas["turn_rate"], model) - model.swarm.bias_drift[None, :] * _trial_index(meas)
@@ -136,6 +142,7 @@ class BiasDrift(Effect):
 
     name, kind = "bias_drift", "motion"
     extends = ("heading_bias",)  # a line per robot contains its mean
+    predicts = {"turn_rate": "line"}
 
     def fit(self, model, meas, ref, resim=None):
         b = _bias(meas["turn_rate"], model)  # (K', N)
@@ -160,6 +167,7 @@ class SpeedHeterogeneity(Effect):
     """Per-robot speed factor."""
 
     name, kind = "speed_heterogeneity", "motion"
+    predicts = {"speed": "mean"}
 
     def fit(self, model, meas, ref, resim=None):
         ratio = _nanmean(meas["speed"], axis=0) / _nanmean(ref["speed"], axis=(0, 1))
@@ -190,6 +198,7 @@ class MotionNoise(Effect):
     """
 
     name, kind = "motion_noise", "motion"
+    predicts = {"diffusion": "pop"}
 
     def fit(self, model, meas, ref, resim=None, iterations=3):
         target = _noise_stats(meas)  # (diffusion, within-robot speed variance)
@@ -210,6 +219,7 @@ class SensorGain(Effect):
     """Per-robot light-sensor gain and offset."""
 
     name, kind = "sensor_gain", "light_sweep"
+    predicts = {"gain": "mean", "offset": "mean"}
 
     def fit(self, model, meas, ref, resim=None):
         g = model.swarm.sensor_gain * _nanmean(meas["gain"], axis=0) / _nanmean(ref["gain"], axis=(0, 1))
@@ -221,12 +231,51 @@ class ClockDrift(Effect):
     """Per-robot clock rate (and the within-robot trial-to-trial spread that is left)."""
 
     name, kind = "clock_drift", "blink"
+    predicts = {"toggle_rate": "mean"}
 
     def fit(self, model, meas, ref, resim=None):
         c = model.swarm.clock_rate * _nanmean(meas["toggle_rate"], axis=0) / _nanmean(ref["toggle_rate"], axis=(0, 1))
         rel = meas["toggle_rate"] / _nanmean(meas["toggle_rate"], axis=0)[None, :]
         spread = max(_within_var(rel) - _est_var_rel(ref, model, resim), 0.0)
         return model.with_traits(clock_rate=c, clock_trial_sd=np.full(len(model.swarm), np.sqrt(spread)))
+
+
+#: What :func:`fit_base` estimates from the data, per kind (population levels only).
+BASE_PREDICTS = {"motion": {"turn_rate": "pop", "speed": "pop"}, "light_sweep": {"gain": "pop", "offset": "pop"},
+                 "blink": {"toggle_rate": "pop"}}
+_RANK = {None: 0, "pop": 1, "mean": 2, "line": 3}
+
+
+def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit_base: bool = True):
+    """Estimation part of the predictive variance of trial ``k``'s summary, as a multiple of
+    one trial's simulated variance: ``(h_track, h_level)`` for one robot's summary and for the
+    mean over robots.
+
+    A prediction from parameters fitted on the training trials is off by their estimation error
+    as well as by the trial's own noise, so a held-out summary varies by ``var * (1 + h)`` under
+    a model that is right. Without ``h`` a right model looks wrong on held-out data (a line per
+    robot extrapolated to an end trial by ``1/3 + 9/5`` of a trial's variance with 3 training
+    trials), and the gap of a right model is not 0. ``h`` follows the most detailed predictor any
+    fitted part uses for the summary: a population level (``1 / (N K')`` per robot, ``1 / K'``
+    for the mean over robots), a robot's mean (``1 / K'``) or a robot's line (regression leverage
+    of trial ``k``); summaries nothing fits (a nominal level) have none.
+    """
+    how = BASE_PREDICTS.get(kind, {}).get(component) if fit_base else None
+    for name in names:
+        p = LIBRARY[name].predicts.get(component)
+        if _RANK[p] > _RANK[how]:
+            how = p
+    t = np.asarray(train, dtype=float)
+    Kp = len(t)
+    if how is None or Kp == 0:
+        return 0.0, 0.0
+    if how == "pop":
+        return 1.0 / (n_robots * Kp), 1.0 / Kp
+    sxx = float(((t - t.mean()) ** 2).sum())
+    if how == "mean" or sxx == 0:
+        return 1.0 / Kp, 1.0 / Kp
+    h = 1.0 / Kp + (k - t.mean()) ** 2 / sxx
+    return h, h
 
 
 def _trial_index(meas):

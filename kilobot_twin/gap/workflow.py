@@ -8,14 +8,17 @@
    below ``alpha`` / (number of statistics). **Localise** it to robots and trials by z-scores of
    their means against the simulated ones.
 3. **Name** the effect: every candidate of the library is fitted on all but one trial and scored
-   by the Gaussian log-likelihood of the held-out trial's summaries under simulations of the
-   fitted model (leave-one-trial-out), per robot; a bootstrap over robots gives intervals. The
+   by the Gaussian log-likelihood of the held-out trial's summaries under its predictive
+   distribution (leave-one-trial-out): the simulated spread of the fitted model plus the
+   estimation error of the parameters fitted on the other trials (``effects.leverage``), per
+   robot; a bootstrap over robots gives intervals. The
    best is named only if its gain over the current model and over the runner-up both have a
    95 % interval above zero. Otherwise the disagreement is ``unexplained``.
 4. **Add** it: its per-robot parameters, fitted on all trials, go into the model.
 5. **Show the gap shrink**: on held-out trials, the excess mean squared z-score of measured
    summaries against simulations of the base and of the final model (0 = as good as the
-   model's own noise), with 95 % bootstrap intervals over robots. Repeat from 2.
+   model's own predictive spread, which a right model is in expectation), with 95 % bootstrap
+   intervals over robots. Repeat from 2.
 """
 
 from __future__ import annotations
@@ -191,10 +194,15 @@ class _Fitter:
 
 
 def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
-    """Leave-one-trial-out predictions: per fold, simulated mean and sd of each summary."""
+    """Leave-one-trial-out predictive distributions: per fold, the simulated mean of each summary
+    and its predictive sd, for one robot's summary (``sd``) and for the mean over robots
+    (``sd_level``, per robot: divide by sqrt(n)). Both are the simulated spread of a trial plus
+    the estimation error of the parameters fitted on the other trials (:func:`effects.leverage`)."""
     K = fitter.cond.trials
+    N = len(fitter.cond.robot_ids)
     comps = COMPONENTS[kind]
-    pred = {c: {"mean": np.full((K, len(fitter.cond.robot_ids)), np.nan), "sd": np.full(K, np.nan)} for c in comps}
+    pred = {c: {"mean": np.full((K, N), np.nan), "sd": np.full(K, np.nan), "sd_level": np.full(K, np.nan)}
+            for c in comps}
     for k in range(K):
         train = [t for t in range(K) if t != k]
         model = fitter.fit(names, train)
@@ -204,8 +212,10 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             pred[c]["mean"][k] = np.nanmean(x, axis=0)
             # Pooled spread, floored at 1e-4 of the level so a deterministic prediction cannot
             # turn a tiny mismatch into an infinite log-likelihood.
-            var = np.nanmean(np.nanvar(x, axis=0, ddof=1))
-            pred[c]["sd"][k] = np.sqrt(var + (1e-4 * np.nanmean(np.abs(x))) ** 2)
+            var = np.nanmean(np.nanvar(x, axis=0, ddof=1)) + (1e-4 * np.nanmean(np.abs(x))) ** 2
+            h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base)
+            pred[c]["sd"][k] = np.sqrt(var * (1 + h_track))
+            pred[c]["sd_level"][k] = np.sqrt(var * (1 + h_level))
     return pred
 
 
@@ -222,13 +232,15 @@ def _loglik_per_robot(meas, pred, comps):
 def _gap(meas, pred, yard, comps, robots=None) -> float:
     """The gap: held-out prediction error in noise units, minus 1 (0 = as good as the model's noise).
 
-    Three equally weighted parts, each about 0 for a model that reproduces the data:
+    Three equally weighted parts, each 0 in expectation for a model that reproduces the data
+    (spreads are predictive: the model's noise plus the estimation error of what was fitted on
+    the other trials, so a fitted population level does not leave a floor of 1/K' per part):
 
     - per track, against the final model's spread: z = (measured - the model's simulated mean for
       that trial and robot) / final spread; sees missing per-robot or per-trial structure;
     - per track, against the model's own spread: sees a model whose noise is too narrow or wide
       (a wrong noise level moves spreads, not means);
-    - per trial level: z = (mean over robots of measured - of predicted) / (spread / sqrt(n));
+    - per trial level: z = (mean over robots of measured - of predicted) / (level spread / sqrt(n));
       sees population-level errors that single tracks hide.
 
     ``robots`` (indices, may repeat) resamples robots for the bootstrap.
@@ -242,7 +254,7 @@ def _gap(meas, pred, yard, comps, robots=None) -> float:
         track.append(((m - mu) / sd) ** 2)
         own.append(((m - mu) / sd_own) ** 2)
         n = np.isfinite(m).sum(axis=1)
-        level.append(((np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (sd[:, 0] / np.sqrt(n))) ** 2)
+        level.append(((np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (yard[c]["sd_level"] / np.sqrt(n))) ** 2)
     return float(np.mean([np.nanmean(np.stack(x)) - 1.0 for x in (track, own, level)]))
 
 
