@@ -377,7 +377,8 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
     for j, st in enumerate(steps):
         st["gap_after"] = _gap(meas, pred_cache[names[: j + 1]], pred_final, comps)
     metric = ("held-out prediction error (leave-one-trial-out) of the summaries (" + ", ".join(comps)
-              + "): mean z^2 - 1 per track (final model's spread), per track (own spread) and per trial level")
+              + "): mean z^2 - 1 per track (final model's spread), per track (own spread) and per trial level; "
+              "spreads are predictive (simulated noise + estimation error of the fitted parameters)")
     section = {
         "dataset": str(ds.path), "kind": kind, "robots": [int(r) for r in cond.robot_ids], "trials": cond.trials,
         "named_effects": list(names), "unexplained": unexplained, "unexplained_signals": unexplained_signals,
