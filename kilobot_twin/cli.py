@@ -211,7 +211,7 @@ def _parser() -> argparse.ArgumentParser:
     tc.add_argument("path")
 
     r = sub.add_parser("run", help="run the ROS 2 twin (world, swarm, analysis, recorder) into an MCAP bag")
-    r.add_argument("--scenario", default="phototaxis", help="straight, phototaxis, random_walk, blink or sync")
+    r.add_argument("--scenario", default="phototaxis", help="straight, phototaxis, random_walk, blink, sync or a scenario YAML file")
     r.add_argument("--robots", type=_positive_int, default=10)
     r.add_argument("--duration", type=float, default=20.0, help="simulated seconds")
     r.add_argument("--seed", type=int, default=0)

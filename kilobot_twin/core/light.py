@@ -78,13 +78,15 @@ class ImageField:
     """An image projected on the arena: ``image[row, col]`` in [0, 1] times ``peak``.
 
     ``extent_m = (xmin, xmax, ymin, ymax)``; row 0 is the top (largest y), as in a picture.
-    Bilinear interpolation inside, 0 outside.
+    Bilinear interpolation inside, 0 outside. ``path`` is the file the image was read from
+    (absolute); documents carry it so that other processes (robot nodes) can load the same image.
     """
 
     image: np.ndarray
     extent_m: tuple[float, float, float, float] = (-2.0, 2.0, -2.0, 2.0)
     peak: float = LIGHT_PEAK
     center: tuple[float, float] = (0.0, 0.0)
+    path: str = ""
     kind: str = field(default="image", init=False)
 
     def intensity(self, x, y, t_s=0.0):
@@ -120,6 +122,7 @@ def field_from_dict(data: Mapping[str, Any], source: str = "", where: str = "lig
         if path is None:
             raise ConfigError(f"{where}path", "missing for an image field", "give a .npy or .png path", source)
         args["image"] = _load_image(path, f"{where}path", source)
+        args["path"] = str(_image_path(path, source).resolve())
         cls = ImageField
     elif kind in _FIELDS:
         cls = _FIELDS[kind]
@@ -131,7 +134,7 @@ def field_from_dict(data: Mapping[str, Any], source: str = "", where: str = "lig
             raise ConfigError(f"{where}{k}", f"not a parameter of the {kind} field", f"use {', '.join(sorted(names))}", source)
         if k in ("center", "extent_m"):
             args[k] = tuple(float(c) for c in v)
-        elif k != "image":
+        elif k not in ("image", "path"):
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
                 raise ConfigError(f"{where}{k}", f"expected a number, got {v!r}", "write a plain number", source)
             if k in ("radius_m", "sigma_m", "period_s", "peak") and v <= 0:
@@ -142,15 +145,28 @@ def field_from_dict(data: Mapping[str, Any], source: str = "", where: str = "lig
 
 
 def field_to_dict(f: LightField) -> dict:
+    """The field as a document. An image field is written by its ``path``: one built from an
+    array alone has none, and a document of it cannot be loaded again (one-line error there)."""
     d = {k: v for k, v in asdict(f).items() if k not in ("image", "kind")}
+    if d.get("path") == "":
+        del d["path"]
     d = {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
     return {"kind": f.kind, **d}
 
 
-def _load_image(path, where, source) -> np.ndarray:
+def _image_path(path, source):
+    """An image path as written: relative to the document it is written in (``source``, when
+    that is a file), else to the working directory."""
     from pathlib import Path
 
-    p = Path(path)
+    p = Path(path).expanduser()
+    if not p.is_absolute() and source and Path(source).is_file() and (Path(source).parent / p).is_file():
+        p = Path(source).parent / p
+    return p
+
+
+def _load_image(path, where, source) -> np.ndarray:
+    p = _image_path(path, source)
     if not p.is_file():
         raise ConfigError(where, f"image {p} not found", "check the path", source)
     if p.suffix == ".npy":

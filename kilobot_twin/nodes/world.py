@@ -42,12 +42,10 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, PointCloud2
 from std_msgs.msg import String, UInt64
 
-from ..core.scenario import Scenario, scenario_from_dict
-from ..core.traits import load_yaml
-from ..errors import ConfigError
+from ..core.scenario import Scenario
 from ..ros import convert, params, qos
 from ..ros.executors import run_node, spin_node
-from ..ros.scenarios import NAMED, named_scenario, world_document
+from ..ros.scenarios import NAMED, named_scenario, scenario_file, world_document
 
 PROG = "kilobot-twin world"
 ROBOT_TOPIC = re.compile(r"^(?:.*/)?kilobot_(\d+)/(pose|light|led|clock)$")
@@ -122,13 +120,7 @@ class WorldNode(Node):
 
     def _scenario(self, name: str, path: str, duration: float) -> Scenario:
         if path:
-            try:
-                data = load_yaml(path)
-            except ConfigError:
-                raise ConfigError("scenario_file", f"{path}: file not found or not YAML", "give a scenario YAML path") from None
-            if isinstance(data, dict) and "scenario" in data:
-                data = data["scenario"]
-            sc = scenario_from_dict(data, source=path)
+            sc = scenario_file(path)
         else:
             sc = named_scenario(name, field="scenario")
         if duration > 0:

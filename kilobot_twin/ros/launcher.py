@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import ConfigError
-from .scenarios import NAMED, load_swarm_traits, named_scenario
+from .scenarios import NAMED, is_scenario_file, load_swarm_traits, named_scenario, scenario_file
 
 NODES = ("recorder", "analysis", "world", "swarm")
 #: Fast DDS profiles for the node processes (shared-memory queues sized for swarm bursts).
@@ -104,8 +104,9 @@ def _node_cmd(name: str, **params) -> list[str]:
 
 def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, traits: str | None, out: str):
     """Reject bad input before any process starts (one line naming the option; exit 2)."""
-    if scenario not in NAMED:
-        raise ConfigError("--scenario", f"unknown scenario {scenario!r}", f"use one of {', '.join(NAMED)}")
+    if scenario not in NAMED and not is_scenario_file(scenario):
+        raise ConfigError("--scenario", f"unknown scenario {scenario!r}",
+                          f"use one of {', '.join(NAMED)} or a scenario YAML file")
     if mode not in ("lockstep", "realtime"):
         raise ConfigError("--mode", f"unknown mode {mode!r}", "use lockstep or realtime")
     if robots < 1:
@@ -114,7 +115,10 @@ def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, 
         raise ConfigError("--duration", f"must be positive, got {duration}", "give simulated seconds")
     if seed < 0:
         raise ConfigError("--seed", f"must be >= 0, got {seed}", "give a non-negative integer")
-    named_scenario(scenario, duration)
+    if is_scenario_file(scenario):
+        scenario_file(scenario, duration, field="--scenario")
+    else:
+        named_scenario(scenario, duration)
     if traits:
         load_swarm_traits(traits, robots, seed, field="--traits")
     if (Path(out) / "metadata.yaml").exists() or any(Path(out).glob("*.mcap")):
@@ -136,13 +140,15 @@ def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 2
     logs.mkdir(parents=True, exist_ok=True)
     if timeout_s is None:
         timeout_s = 60.0 + (duration * 1.5 if mode == "realtime" else duration * 2.0)
+    world_scenario = ({"scenario_file": str(Path(scenario).resolve())} if is_scenario_file(scenario)
+                      else {"scenario": scenario})
     swarm_stats, world_stats = logs / "swarm_stats.json", logs / "world_stats.json"
     for f in (swarm_stats, world_stats):
         f.unlink(missing_ok=True)
     cmds = {
         "recorder": _node_cmd("recorder", out=str(bag)),
         "analysis": _node_cmd("analysis"),
-        "world": _node_cmd("world", scenario=scenario, duration_s=float(duration), seed=seed, robots=robots, mode=mode,
+        "world": _node_cmd("world", **world_scenario, duration_s=float(duration), seed=seed, robots=robots, mode=mode,
                            wait_for_nodes="recorder", stats_file=str(world_stats)),
         "swarm": _node_cmd("swarm", robots=robots, seed=seed, traits_file=traits or "", stats_file=str(swarm_stats),
                            crash_after_steps=crash_after_steps),

@@ -48,6 +48,32 @@ def named_scenario(name: str, duration_s: float | None = None, field: str = "sce
     return scenario_from_dict(data)
 
 
+def scenario_file(path: str, duration_s: float | None = None, field: str = "scenario_file") -> Scenario:
+    """A scenario YAML file (the scenario mapping itself, or a run config with ``scenario:``),
+    with ``duration_s`` if given; one-line errors naming ``field``."""
+    from pathlib import Path
+
+    from ..core.traits import load_yaml
+
+    if not Path(path).is_file():
+        raise ConfigError(field, f"{path}: file not found", "give a scenario YAML path or a named scenario")
+    try:
+        data = load_yaml(path)
+    except ConfigError:
+        raise ConfigError(field, f"{path}: not YAML", "give a scenario YAML file") from None
+    if isinstance(data, Mapping) and "scenario" in data:
+        data = data["scenario"]
+    sc = scenario_from_dict(data, source=str(path))
+    if duration_s is not None and duration_s > 0:
+        sc = sc.replace(duration_s=float(duration_s))
+    return sc
+
+
+def is_scenario_file(name: str) -> bool:
+    """``run --scenario`` takes a named scenario or a path to a YAML file."""
+    return name not in NAMED and (name.endswith((".yaml", ".yml")) or "/" in name)
+
+
 def world_document(scenario: Scenario, seed: int, run: int, n_robots: int, mode: str,
                    clock_period_s: float = 1.0) -> str:
     """The JSON the world publishes once (transient-local) for robots and recordings.

@@ -214,3 +214,27 @@ def test_phototaxis_argos_delay_rules():
     assert delay_ticks(100, 10) == 1
     assert delay_ticks(2000, 10) == 20
     assert delay_ticks(150, 10) == 2     # countdown runs until <= one tick
+
+
+def test_image_field_survives_the_world_document(tmp_path, monkeypatch):
+    """Robot nodes rebuild the scenario from the world's JSON document: an image field travels
+    by its (absolute) path, relative paths are read next to the scenario file."""
+    from kilobot_twin.core.scenario import scenario_from_dict
+    from kilobot_twin.core.traits import load_yaml
+    from kilobot_twin.errors import ConfigError
+    from kilobot_twin.ros.scenarios import parse_world_document, scenario_from_document, world_document
+
+    img = np.random.default_rng(0).random((8, 12))
+    (tmp_path / "fields").mkdir()
+    np.save(tmp_path / "fields" / "spot.npy", img)
+    (tmp_path / "sc.yaml").write_text("light: {kind: image, path: fields/spot.npy, extent_m: [-1, 1, -1, 1]}\n")
+    monkeypatch.chdir("/")  # the path is relative to the scenario file, not the working directory
+    sc = scenario_from_dict(load_yaml(tmp_path / "sc.yaml"), source=str(tmp_path / "sc.yaml"))
+    back = scenario_from_document(parse_world_document(world_document(sc, 1, 0, 3, "lockstep")))
+    x, y = np.meshgrid(np.linspace(-1.2, 1.2, 9), np.linspace(-1.2, 1.2, 7))
+    np.testing.assert_array_equal(back.light.intensity(x, y), sc.light.intensity(x, y))
+    assert np.ptp(sc.light.intensity(x, y)) > 0
+    # An image given as an array has no file: its document says so in one line when loaded.
+    doc = light.field_to_dict(light.ImageField(img))
+    with pytest.raises(ConfigError, match="path"):
+        light.field_from_dict(doc)

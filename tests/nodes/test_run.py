@@ -66,8 +66,32 @@ def test_run_lockstep_bag_equals_batch_and_holds_run_metadata(tmp_path):
     np.testing.assert_array_equal(pts["led"].T, ref.traj["led"][0])
 
 
+def test_run_takes_a_scenario_file_with_an_image_light_field(tmp_path):
+    """`run --scenario FILE.yaml`: the world reads the file and the robots rebuild its image light
+    field from the world's document, so their readings equal the batch engine's on the same file."""
+    from kilobot_twin.core.scenario import scenario_from_dict
+    from kilobot_twin.core.traits import load_yaml
+
+    yy, xx = np.mgrid[0:32, 0:32]
+    np.save(tmp_path / "spot.npy", np.exp(-((xx - 20) ** 2 + (yy - 12) ** 2) / 60.0))
+    sc_file = tmp_path / "image.yaml"
+    sc_file.write_text("behavior: {kind: phototaxis, p_right: 0.5}\nlight: {kind: image, path: spot.npy, extent_m: [-0.5, 0.5, -0.5, 0.5]}\n"
+                       "start: {kind: uniform, half_width_m: 0.3, heading_rad: null, shared: false}\n")
+    out = tmp_path / "bags" / "img"
+    res = cli("run", "--scenario", str(sc_file), "--robots", "3", "--duration", "2", "--seed", "2", "--out", str(out))
+    assert res.returncode == 0, res.stdout + res.stderr
+    sc = scenario_from_dict(load_yaml(sc_file), source=str(sc_file)).replace(duration_s=2.0)
+    ref = sim.simulate(sc, load_swarm_traits("", 3, 2), 2, runs=[0], record_every=1)
+    assert np.ptp(ref.traj["reading"]) > 50  # the robots see the spot, not a flat field
+    msgs = rosbags_messages(out)
+    for i in range(3):
+        light = [m.illuminance for t, m in msgs if t == f"/kilobot_{i}/light"]
+        np.testing.assert_allclose(light, ref.traj["reading"][0, i], rtol=0, atol=1e-9)
+
+
 @pytest.mark.parametrize("args,field", [
     (["run", "--scenario", "fly"], "--scenario"),
+    (["run", "--scenario", "/no/such/scenario.yaml"], "--scenario"),
     (["run", "--mode", "warp"], "--mode"),
     (["run", "--traits", "/no/such.yaml"], "--traits"),
     (["run", "--duration", "-1"], "--duration"),
