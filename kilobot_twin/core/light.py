@@ -121,8 +121,9 @@ def field_from_dict(data: Mapping[str, Any], source: str = "", where: str = "lig
         path = args.pop("path", None)
         if path is None:
             raise ConfigError(f"{where}path", "missing for an image field", "give a .npy or .png path", source)
-        args["image"] = _load_image(path, f"{where}path", source)
-        args["path"] = str(_image_path(path, source).resolve())
+        p = _image_path(path, source)
+        args["image"] = _load_image(p, f"{where}path", source)
+        args["path"] = str(p.resolve())
         cls = ImageField
     elif kind in _FIELDS:
         cls = _FIELDS[kind]
@@ -165,8 +166,8 @@ def _image_path(path, source):
     return p
 
 
-def _load_image(path, where, source) -> np.ndarray:
-    p = _image_path(path, source)
+def _load_image(p, where, source) -> np.ndarray:
+    """The image at ``p`` (a path from :func:`_image_path`) as floats in [0, 1]."""
     if not p.is_file():
         raise ConfigError(where, f"image {p} not found", "check the path", source)
     if p.suffix == ".npy":

@@ -254,8 +254,8 @@ def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit
     A prediction from parameters fitted on the training trials is off by their estimation error
     as well as by the trial's own noise, so a held-out summary varies by ``var * (1 + h)`` under
     a model that is right. Without ``h`` a right model looks wrong on held-out data (a line per
-    robot extrapolated to an end trial by ``1/3 + 9/5`` of a trial's variance with 3 training
-    trials), and the gap of a right model is not 0. ``h`` follows the most detailed predictor any
+    robot fitted on trials 1-3 and extrapolated to trial 0 is off by ``1/3 + 2**2/2`` of a trial's
+    variance besides the trial's own), and the gap of a right model is not 0. ``h`` follows the most detailed predictor any
     fitted part uses for the summary: a population level (``1 / (N K')`` per robot, ``1 / K'``
     for the mean over robots), a robot's mean (``1 / K'``) or a robot's line (regression leverage
     of trial ``k``); summaries nothing fits (a nominal level) have none.

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import ConfigError
-from .scenarios import NAMED, is_scenario_file, load_swarm_traits, named_scenario, scenario_file
+from .scenarios import NAMED, is_scenario_file, load_swarm_traits, scenario_file
 
 NODES = ("recorder", "analysis", "world", "swarm")
 #: Fast DDS profiles for the node processes (shared-memory queues sized for swarm bursts).
@@ -104,7 +104,9 @@ def _node_cmd(name: str, **params) -> list[str]:
 
 def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, traits: str | None, out: str):
     """Reject bad input before any process starts (one line naming the option; exit 2)."""
-    if scenario not in NAMED and not is_scenario_file(scenario):
+    if is_scenario_file(scenario):
+        scenario_file(scenario, duration, field="--scenario")
+    elif scenario not in NAMED:
         raise ConfigError("--scenario", f"unknown scenario {scenario!r}",
                           f"use one of {', '.join(NAMED)} or a scenario YAML file")
     if mode not in ("lockstep", "realtime"):
@@ -115,10 +117,6 @@ def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, 
         raise ConfigError("--duration", f"must be positive, got {duration}", "give simulated seconds")
     if seed < 0:
         raise ConfigError("--seed", f"must be >= 0, got {seed}", "give a non-negative integer")
-    if is_scenario_file(scenario):
-        scenario_file(scenario, duration, field="--scenario")
-    else:
-        named_scenario(scenario, duration)
     if traits:
         load_swarm_traits(traits, robots, seed, field="--traits")
     if (Path(out) / "metadata.yaml").exists() or any(Path(out).glob("*.mcap")):
