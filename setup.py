@@ -19,7 +19,21 @@ setup(
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
         (f"share/{PACKAGE}/launch", glob("launch/*.py")),
     ],
-    install_requires=["setuptools"],
+    # Compatible ranges for `pip install .`; requirements.txt pins the exact versions `make` uses.
+    install_requires=[
+        "setuptools",
+        "ros-jazzy-rclpy[fastrtps]>=7.1.6,<8",
+        "ros-jazzy-common-interfaces>=5.3.6,<6",
+        "numpy>=1.26,<3",
+        "mcap>=1.2,<2",
+        "zstandard>=0.22",
+        "rerun-sdk>=0.41,<0.42",
+        "pyyaml>=6",
+        "tqdm>=4.60",
+        "matplotlib>=3.8",
+        "scipy>=1.11",
+        "pyarrow>=14",
+    ],
     zip_safe=False,
     entry_points={
         "console_scripts": [

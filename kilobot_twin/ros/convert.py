@@ -359,12 +359,36 @@ def robot_cloud_cdr(stamp_ns: int, ids, x_m, y_m, theta_rad, reading, led, ticks
 
 
 def robot_cloud_from_cdr(data: bytes) -> tuple[int, np.ndarray]:
-    """(stamp ns, points as a :data:`CLOUD_DTYPE` array) of a serialized robot cloud."""
+    """(stamp ns, points as a :data:`CLOUD_DTYPE` array) of a serialized robot cloud.
+
+    Parsed from the front, field by field: a buffer that crossed DDS between processes may
+    carry padding after the last field (``is_dense``), so nothing is located from the end.
+    Raises ValueError for a PointCloud2 that is not laid out as :data:`CLOUD_FIELDS`.
+    """
     _check_le(data)
-    start = 4 + _align(_header_end(data) - 4, 4)
-    _height, width = struct.unpack_from("<II", data, start)
-    n_bytes = width * CLOUD_DTYPE.itemsize
-    return stamp_ns_from_cdr(data), np.frombuffer(data, dtype=CLOUD_DTYPE, count=width, offset=len(data) - 1 - n_bytes)
+
+    def u32(pos: int) -> tuple[int, int]:
+        pos = 4 + _align(pos - 4, 4)
+        return struct.unpack_from("<I", data, pos)[0], pos + 4
+
+    height, pos = u32(_header_end(data))
+    width, pos = u32(pos)
+    n_fields, pos = u32(pos)
+    names = []
+    for _ in range(n_fields):
+        n_chars, pos = u32(pos)
+        names.append(data[pos:pos + n_chars].rstrip(b"\x00").decode())
+        pos += n_chars
+        _offset, pos = u32(pos)
+        pos += 1  # datatype (uint8)
+        _count, pos = u32(pos)
+    pos += 1  # is_bigendian
+    point_step, pos = u32(pos)
+    _row_step, pos = u32(pos)
+    n_bytes, pos = u32(pos)
+    if tuple(names) != CLOUD_DTYPE.names or point_step != CLOUD_DTYPE.itemsize or n_bytes != height * width * point_step:
+        raise ValueError(f"not a robot cloud: fields {names}, point_step {point_step}, {n_bytes} data bytes")
+    return stamp_ns_from_cdr(data), np.frombuffer(data, dtype=CLOUD_DTYPE, count=height * width, offset=pos)
 
 
 def members_msg(ids) -> String:

@@ -107,3 +107,29 @@ def test_clock_steps(dt, period, n_steps, expected):
     assert np.flatnonzero(mask).tolist() == expected
     # Scalar and array calls agree (robots ask step by step, the world for all steps at once).
     assert [bool(convert.clock_steps(k, dt, period)) for k in range(n_steps + 1)] == mask.tolist()
+
+
+@pytest.mark.parametrize("frame_id", ["arena", "a", "map_frame_x"])
+@pytest.mark.parametrize("padding", [0, 3, 7])
+def test_robot_cloud_reader_parses_from_the_front(frame_id, padding):
+    """A cloud serialized by rclpy from a message object (not by our encoder), with other header
+    lengths (other alignments) and the trailing padding a DDS buffer carries between processes."""
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import PointField
+
+    n = 5
+    pts = np.zeros(n, dtype=convert.CLOUD_DTYPE)
+    pts["id"], pts["led"] = np.arange(10, 10 + n), [0, 1, 2, 1, 0]
+    pts["x"], pts["y"], pts["ticks"] = np.linspace(-1, 1, n), np.linspace(2, 3, n), np.arange(n) * 31.0
+    m = PointCloud2()
+    m.header.frame_id = frame_id
+    m.header.stamp.sec, m.header.stamp.nanosec = 7, 250
+    m.height, m.width = 1, n
+    m.fields = [PointField(name=k, offset=convert.CLOUD_DTYPE.fields[k][1], datatype=dt, count=1)
+                for k, _, dt in convert.CLOUD_FIELDS]
+    m.point_step, m.row_step, m.is_dense = pts.itemsize, pts.nbytes, True
+    m.data = pts.tobytes()
+    raw = serialize_message(m) + bytes(padding)
+    stamp, got = convert.robot_cloud_from_cdr(raw)
+    assert stamp == 7 * 10**9 + 250
+    np.testing.assert_array_equal(got, pts)
