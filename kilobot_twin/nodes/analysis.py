@@ -1,18 +1,25 @@
 """``analysis``: live swarm metrics from every robot's pose, LED and clock.
 
-Publishes at ``rate_hz`` (std_msgs/Float64 unless noted), under ``/analysis/``:
+Publishes under ``/analysis/``, once every ``period_s`` of simulated time (parameter, default
+1 s; 0 = every step), in this order:
 
-- ``led_red_fraction``, ``led_blue_fraction``: fraction of robots showing red / blue;
-- ``order_parameter``: Kuramoto order parameter ``|mean exp(i phi)|`` of the robots' blink
-  phases ``phi = 2 pi ticks / (2 half_period_ticks)`` (blink scenarios only);
-- ``mean_distance_to_light_m``: mean distance of the robots to the light centre;
-- ``covered_area_m2``: area of the arena's coverage cells visited by any robot so far;
+- ``stamp`` (builtin_interfaces/Time): the simulated time of the state the metrics below are
+  computed from (the stamp of a swarm's ``robots`` cloud / the robots' poses);
+- std_msgs/Float64, NaN where a metric is undefined (no robots heard; no blink program), so
+  that the k-th message of every metric topic belongs to the k-th ``stamp``:
+  ``led_red_fraction``, ``led_blue_fraction`` (fraction of robots showing red / blue);
+  ``order_parameter`` (Kuramoto order parameter ``|mean exp(i phi)|`` of the robots' blink
+  phases ``phi = 2 pi ticks / (2 half_period_ticks)``); ``mean_distance_to_light_m`` (mean
+  distance of the robots to the light centre); ``covered_area_m2`` (area of the arena's
+  coverage cells visited by any robot up to that time);
 - ``robots`` (std_msgs/UInt32): robots heard from.
 
 Robots are discovered on the graph (late joiners included). The robots of a batched ``swarm``
-process are read from its ``robots`` cloud (one message per step for the whole swarm; the
-swarm's transient-local ``members`` says which robots it covers), every other robot from its
-own ``pose``, ``led`` and ``clock`` topics. The scenario (light centre, arena, blink period)
+process are read from its ``robots`` cloud (one message per step for the whole swarm, all
+robots at one stamp: the metrics are exact for that step; the swarm's transient-local
+``members`` says which robots it covers), every other robot from its own ``pose``, ``led`` and
+``clock`` topics (a step is evaluated once every robot's pose has reached it; ``led`` has no
+stamp, so it is the latest one received). The scenario (light centre, arena, blink period)
 comes from the world's transient-local document.
 """
 
@@ -22,6 +29,7 @@ import json
 import re
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2, TimeReference
@@ -59,25 +67,27 @@ def swarm_metrics(x, y, led, ticks, scenario: Scenario, covered_cells: int) -> d
 class AnalysisNode(Node):
     def __init__(self, *, context=None, parameter_overrides=None, **kwargs):
         super().__init__("analysis", context=context, parameter_overrides=parameter_overrides, **kwargs)
-        rate = params.number(self, "rate_hz", 2.0, minimum=0.0, strict=True)
+        self.period_ns = int(round(params.number(self, "period_s", 1.0, minimum=0.0) * convert.NS_PER_S))
         self.world = params.text(self, "world", "/world")
         self.scenario = Scenario()
         self.x: dict[int, float] = {}
         self.y: dict[int, float] = {}
         self.led: dict[int, int] = {}
         self.ticks: dict[int, float] = {}
+        self.stamp: dict[int, int] = {}  # robot -> stamp (ns) of its newest pose
+        self.next_ns = 0  # the next evaluation is due once every robot has reached this time
         self.cells: set[int] = set()
         self._visited_x: list[float] = []
         self._visited_y: list[float] = []
         self.subscribed: set[str] = set()
         self.covered: set[int] = set()  # robots read from a swarm's cloud
         self._robot_subs: dict[int, list] = {}
-        self.pubs = {m: self.create_publisher(Float64, f"~/{m}", 10) for m in METRICS}
-        self.pub_robots = self.create_publisher(UInt32, "~/robots", 10)
+        self.pub_stamp = self.create_publisher(Time, "~/stamp", qos.DATA)
+        self.pubs = {m: self.create_publisher(Float64, f"~/{m}", qos.DATA) for m in METRICS}
+        self.pub_robots = self.create_publisher(UInt32, "~/robots", qos.DATA)
         self.latest: dict = {}
         self.create_subscription(String, f"{self.world}/scenario", self._on_world, qos.LATCHED)
         self.create_timer(0.25, self._discover)
-        self.create_timer(1.0 / rate, self.publish_metrics)
 
     def _on_world(self, msg: String) -> None:
         self.scenario = scenario_from_document(parse_world_document(msg.data))
@@ -120,33 +130,44 @@ class AnalysisNode(Node):
         self.create_subscription(PointCloud2, convert.swarm_cloud_topic(base), self._on_cloud, qos.DATA, raw=True)
 
     def _on_cloud(self, data: bytes) -> None:
-        _stamp, pts = convert.robot_cloud_from_cdr(data)
+        stamp, pts = convert.robot_cloud_from_cdr(data)
         ids = pts["id"].tolist()
         x, y = pts["x"].tolist(), pts["y"].tolist()
         self.x.update(zip(ids, x))
         self.y.update(zip(ids, y))
         self.led.update(zip(ids, pts["led"].tolist()))
         self.ticks.update(zip(ids, pts["ticks"].tolist()))
+        self.stamp.update(dict.fromkeys(ids, stamp))
         self._visited_x += x
         self._visited_y += y
+        self._maybe_publish()
 
     def _on_pose(self, rid: int, data: bytes) -> None:
         x, y = convert.pose_xy_from_cdr(data)
         self.x[rid], self.y[rid] = x, y
+        self.stamp[rid] = convert.stamp_ns_from_cdr(data)
         self._visited_x.append(x)  # coverage cells are computed in bulk at publication
         self._visited_y.append(y)
+        self._maybe_publish()
 
-    def publish_metrics(self) -> dict:
+    def _maybe_publish(self) -> None:
+        """Publish once every robot heard from has reached the next evaluation time."""
+        t_ns = min(self.stamp.values())
+        if t_ns >= self.next_ns:
+            self.publish_metrics(t_ns)
+            self.next_ns = (t_ns // self.period_ns + 1) * self.period_ns if self.period_ns else t_ns + 1
+
+    def publish_metrics(self, stamp_ns: int) -> dict:
         if self._visited_x:
             cells = self.scenario.arena.cell_index(np.array(self._visited_x), np.array(self._visited_y))
             self.cells.update(np.unique(cells).tolist())
             self._visited_x, self._visited_y = [], []
         ids = sorted(self.x)
-        m = swarm_metrics([self.x[i] for i in ids], [self.y[i] for i in ids], list(self.led.values()),
-                          list(self.ticks.values()), self.scenario, len(self.cells))
+        m = swarm_metrics([self.x[i] for i in ids], [self.y[i] for i in ids], [self.led[i] for i in ids if i in self.led],
+                          [self.ticks[i] for i in ids if i in self.ticks], self.scenario, len(self.cells))
+        self.pub_stamp.publish(convert.ns_to_time(stamp_ns))
         for k, v in m.items():
-            if np.isfinite(v):
-                self.pubs[k].publish(Float64(data=v))
+            self.pubs[k].publish(Float64(data=v))
         self.pub_robots.publish(UInt32(data=len(ids)))
         self.latest = m
         return m
