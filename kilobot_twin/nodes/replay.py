@@ -31,7 +31,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from ..errors import ConfigError
 from ..ros import params
-from ..ros.executors import run_node
+from ..ros.executors import STOP, run_node
 from .recorder import message_class
 
 PROG = "kilobot-twin replay"
@@ -147,7 +147,11 @@ class ReplayNode(Node):
             self.clock_pub = self.create_publisher(Clock, "/clock", QoSProfile(depth=100))
         self.errors_ns: list[np.ndarray] = []
         self.published = 0
-        self.stopped = False
+
+    @property
+    def stopped(self) -> bool:
+        """SIGINT / SIGTERM reached the node process (see :func:`~kilobot_twin.ros.executors.run_node`)."""
+        return STOP.is_set()
 
     def wait_for_subscribers(self) -> bool:
         """Up to ``wait_for_subscribers_s``: until every publisher has at least one subscriber."""

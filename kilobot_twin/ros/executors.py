@@ -8,14 +8,37 @@ message; a SingleThreadedExecutor falls below real time between 200 and 300 robo
 from __future__ import annotations
 
 import os
+import signal
+import threading
 
 import rclpy.executors
 import rclpy.utilities
+from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
 #: Wall seconds the EventsExecutor runs its C++ event loop before Python gets control back
 #: (to notice a signal, a finished ``until`` or a shut-down context).
 SPIN_SLICE_S = 0.25
+
+
+#: Set by the first SIGINT / SIGTERM of a node process (see :func:`run_node`).
+STOP = threading.Event()
+
+
+def _request_stop(signum, frame) -> None:
+    """Signal handler of node processes: note the request, never raise.
+
+    Raising KeyboardInterrupt at an arbitrary bytecode (rclpy's default) can cut a bag write or
+    ``metadata.yaml`` in half, and a second Ctrl-C (a terminal's and launch's SIGINT both reach a
+    node) would interrupt the cleanup of the first. The spin loop sees the flag within one slice.
+    """
+    STOP.set()
+
+
+def install_stop_handlers() -> None:
+    """SIGINT and SIGTERM set :data:`STOP` (idempotent; main thread only)."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, _request_stop)
 
 
 def make_executor(context=None, events: bool | None = None):
@@ -46,9 +69,9 @@ def spin(executor, context=None, until=None) -> None:
     context = context if context is not None else rclpy.utilities.get_default_context()
     # Each slice adds a done callback to the future it waits on: with nothing to await, a fresh
     # future per slice keeps that list from growing over a long run.
-    while context.ok() and (until is None or not until.done()):
+    while context.ok() and not STOP.is_set() and (until is None or not until.done()):
         executor.spin_until_future_complete(until if until is not None else Future(), SPIN_SLICE_S)
-    if not context.ok():
+    if not context.ok() or STOP.is_set():
         raise rclpy.executors.ExternalShutdownException()
 
 
@@ -62,19 +85,23 @@ def spin_node(node, until=None) -> None:
 def run_node(prog: str, make_node, run=spin_node, on_exit=None, args=None) -> None:
     """The life of every node process (the Jazzy pattern, once for all nodes).
 
-    ``rclpy.init``; build the node with ``make_node()``; ``run(node)`` (default: spin it);
-    Ctrl-C and SIGTERM end it quietly, a bad parameter (:class:`ConfigError`) ends it with one
-    line and exit code 2; ``on_exit(node)`` (e.g. close a bag) and ``destroy_node`` always run;
-    then ``rclpy.try_shutdown``.
+    ``rclpy.init`` without rclpy's signal handlers; SIGINT and SIGTERM (any number of them, also
+    to the whole process group, also during the cleanup) only set :data:`STOP`, which ends the
+    spin loop (exit code 0: launch reports "finished cleanly"); build the node with
+    ``make_node()``; ``run(node)`` (default: spin it); a bad parameter (:class:`ConfigError`)
+    ends it with one line and exit code 2; ``on_exit(node)`` (e.g. close a bag) and
+    ``destroy_node`` always run, with the context still up; then ``rclpy.try_shutdown``.
     """
     from ..errors import ConfigError
     from . import params
 
-    rclpy.init(args=args)
+    install_stop_handlers()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
-        node = make_node()
-        run(node)
+        if not STOP.is_set():
+            node = make_node()
+            run(node)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass
     except ConfigError as exc:
