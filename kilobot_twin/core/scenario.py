@@ -148,6 +148,38 @@ def _positive(d: Mapping, keys, where, source):
             raise ConfigError(f"{where}{k}", f"must be positive, got {d[k]!r}", "use a positive value", source)
 
 
+def behavior_from_dict(data: Mapping[str, Any] | str, where: str = "behavior.", source: str = "") -> Any:
+    """The validated behaviour of ``{kind: ..., field: value}`` (or just the kind's name).
+
+    The one behaviour validator (YAML files, ROS parameters): unknown kinds and keys are errors;
+    integer fields take whole numbers >= 1 (``half_period_ticks``, ...) or >= 0
+    (``loop_overhead_ticks``); every other field is a non-negative number; probabilities lie in
+    [0, 1]. ``where`` prefixes the field names in messages (``phototaxis.`` for a ROS parameter).
+    """
+    if isinstance(data, str):
+        data = {"kind": data}
+    kind = data.get("kind") if isinstance(data, Mapping) else data
+    if kind not in B.BEHAVIORS:
+        raise ConfigError(f"{where}kind" if where == "behavior." else "behavior", f"unknown behaviour {kind!r}",
+                          f"use one of {', '.join(B.BEHAVIORS)}", source)
+    values = {k: v for k, v in data.items() if k != "kind"}
+    cls = B.BEHAVIORS[kind]
+    for f in dataclasses.fields(cls):
+        v = values.get(f.name)
+        if v is None or isinstance(v, bool) or not isinstance(v, (int, float)):
+            continue  # absent, or a type error that _sub reports
+        if isinstance(f.default, int) and not isinstance(f.default, bool):
+            low = 0 if f.name == "loop_overhead_ticks" else 1
+            if not float(v).is_integer() or v < low:
+                raise ConfigError(f"{where}{f.name}", f"expected a whole number >= {low}, got {v!r}", "write e.g. 31",
+                                  source)
+        elif f.name.startswith("p_") and not 0.0 <= v <= 1.0:
+            raise ConfigError(f"{where}{f.name}", f"{v} is not a probability", "use a value in [0, 1]", source)
+        elif v < 0:
+            raise ConfigError(f"{where}{f.name}", f"must be non-negative, got {v}", "use a value >= 0", source)
+    return _sub(cls, values, where, source)
+
+
 def scenario_from_dict(data: Mapping[str, Any], source: str = "") -> Scenario:
     """Validated :class:`Scenario` from a parsed YAML mapping (``preset:`` first, then overrides)."""
     if data is None:
@@ -170,18 +202,7 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "") -> Scenario:
             raise ConfigError(str(k), "unknown scenario key", f"use one of {', '.join(sorted(known))}", source)
     _positive(data, ("dt_s", "duration_s", "tick_hz", "neighbour_radius_m"), "", source)
 
-    beh = data.get("behavior", {"kind": "straight"})
-    if isinstance(beh, str):
-        beh = {"kind": beh}
-    if not isinstance(beh, Mapping) or beh.get("kind") not in B.BEHAVIORS:
-        kind = beh.get("kind") if isinstance(beh, Mapping) else beh
-        raise ConfigError("behavior.kind", f"unknown behaviour {kind!r}", f"use one of {', '.join(B.BEHAVIORS)}", source)
-    beh = dict(beh)
-    behavior = _sub(B.BEHAVIORS[beh.pop("kind")], beh, "behavior.", source)
-    if isinstance(behavior, (B.Phototaxis, B.PhototaxisArgos)) and not 0.0 <= behavior.p_right <= 1.0:
-        raise ConfigError("behavior.p_right", f"{behavior.p_right} is not a probability", "use a value in [0, 1]", source)
-
-    kw: dict[str, Any] = {"behavior": behavior}
+    kw: dict[str, Any] = {"behavior": behavior_from_dict(data.get("behavior", {"kind": "straight"}), source=source)}
     for k in ("dt_s", "duration_s", "tick_hz", "coupling_per_s", "neighbour_radius_m", "cost_window_steps",
               "floor_tilt", "floor_tilt_direction_rad"):
         if k in data:

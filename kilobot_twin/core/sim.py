@@ -100,9 +100,7 @@ def init_state(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tr
     keys = {p: rng.robot_keys(seed, runs, ids, p) for p in (rng.MOTION, rng.WHEEL, rng.SENSOR, rng.BEHAVIOR, rng.TRIAL)}
     tr = {k: v.reshape(1, N) for k, v in traits.values.items()}
 
-    jitter, clock_jitter = rng.normal_pair(keys[rng.TRIAL], 0)
-    bias = tr["heading_bias"] + tr["bias_drift"] * trials.reshape(R, 1) + tr["bias_trial_sd"] * jitter
-    clock = tr["clock_rate"] * np.maximum(1.0 + tr["clock_trial_sd"] * clock_jitter, 0.05)
+    bias, clock = _trial_rates(tr, keys[rng.TRIAL], trials)
 
     if poses is None:
         x, y, theta = start_poses(scenario, seed, runs, ids)
@@ -125,6 +123,31 @@ def init_state(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tr
         if scenario.coupling_per_s > 0:
             st.adjacency = clocks.neighbours(x, y, scenario.neighbour_radius_m)
     return st
+
+
+def _trial_rates(tr: dict, trial_keys, trials: np.ndarray):
+    """Effective heading bias (trait + drift x trial + trial-to-trial jitter, Eq. 6) and clock rate
+    of each (run, robot) in this trial, both (R, N); the jitters are keyed by (seed, run, robot)."""
+    jitter, clock_jitter = rng.normal_pair(trial_keys, 0)
+    bias = tr["heading_bias"] + tr["bias_drift"] * trials.reshape(-1, 1) + tr["bias_trial_sd"] * jitter
+    clock = tr["clock_rate"] * np.maximum(1.0 + tr["clock_trial_sd"] * clock_jitter, 0.05)
+    return bias, clock
+
+
+def set_traits(st: SimState, traits: SwarmTraits) -> None:
+    """Give the robots of ``st`` new traits (same robots, same order) from the next step on.
+
+    The trial's effective bias and clock rate are derived again with the same keyed jitters,
+    so the result equals a state initialised with these traits, up to the steps already taken.
+    """
+    st.traits = {k: v.reshape(1, -1) for k, v in traits.values.items()}
+    st.bias, st.clock = _trial_rates(st.traits, st.keys[rng.TRIAL], st.trials)
+
+
+def restart_behavior(st: SimState, scenario: Scenario) -> None:
+    """Start ``scenario.behavior``'s program afresh on every robot of ``st`` (at its current pose,
+    clock and reading), from the next step on."""
+    st.behavior = scenario.behavior.init_state(st.shape, st.reading, scenario.tick_hz)
 
 
 def _sense(scenario: Scenario, st: SimState, t_s: float, counter: int):

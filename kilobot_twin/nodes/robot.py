@@ -5,8 +5,16 @@ Publishes, in namespace ``kilobot_<id>`` with relative names, ``pose``, ``light`
 
 Every trait and the behaviour are parameters (defaults from the core dataclasses):
 ``robot_id, seed, run, trial, swarm_size``, the traits (``heading_bias`` ... ``clock_rate``),
-``behavior`` and ``<behavior>.<field>`` (e.g. ``phototaxis.p_right``), ``world`` (the world
+``behavior`` (empty, the default: the world's scenario's behaviour) and ``<behavior>.<field>``
+(e.g. ``phototaxis.p_right``; set ones override the world's values), ``world`` (the world
 node's name, default ``/world``).
+
+The robot's id comes from ``robot_id`` (``-p robot_id:=3`` or a launch file's / params file's
+``parameters=[{'robot_id': 3}]``), else from a namespace ``kilobot_<id>`` it was started in;
+the namespace is ``kilobot_<id>`` unless one was given. ``ros2 param set`` on a trait or on
+the behaviour takes effect from the next step (the behaviour's program restarts; the new
+``traits`` record is published) or is refused with the start-up message; the identity
+parameters (id, seed, run, trial, swarm size, world) are read-only.
 
 The environment (light field, arena, time step, start poses) comes from the world's
 transient-local scenario document, so the robot evaluates the same analytic light field as
@@ -25,18 +33,31 @@ import re
 import sys
 import time
 
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Illuminance, TimeReference
 from geometry_msgs.msg import PoseStamped
 from std_msgs.msg import ColorRGBA, String
 
+from ..core.traits import TRAIT_NAMES, SwarmTraits, traits_from_mapping
+from ..errors import ConfigError
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
 from ..ros.model import RobotModel, SwarmModel
 from ..ros.scenarios import clock_period_from_document, parse_world_document, scenario_from_document
 
 PROG = "kilobot-twin robot"
+NAMESPACE = re.compile(r"/kilobot_(\d+)")
+
+
+class WrongNamespace(Exception):
+    """The robot's id (from a params file) is known only once the node exists: build it again in
+    namespace ``kilobot_<robot_id>``."""
+
+    def __init__(self, robot_id: int):
+        super().__init__(robot_id)
+        self.robot_id = robot_id
 
 
 class RobotNode(Node):
@@ -54,26 +75,38 @@ class RobotNode(Node):
     def __init__(self, robot_id: int | None = None, *, context=None, parameter_overrides=None, namespace=None,
                  lean: bool = False, use_global_arguments: bool = True, standalone: bool = True):
         if robot_id is None:
-            robot_id = next((int(p.value) for p in parameter_overrides or [] if p.name == "robot_id"), 0)
-        super().__init__("robot", namespace=namespace or f"kilobot_{robot_id}", context=context,
+            robot_id = next((int(p.value) for p in parameter_overrides or [] if p.name == "robot_id"), None)
+        asked_ns = namespace or f"kilobot_{robot_id or 0}"
+        super().__init__("robot", namespace=asked_ns, context=context,
                          parameter_overrides=parameter_overrides, start_parameter_services=not lean,
                          enable_rosout=not lean, use_global_arguments=use_global_arguments)
-        self.robot_id = params.integer(self, "robot_id", robot_id, minimum=0)
+        ns = self.get_namespace()
+        remapped = ns != "/" + asked_ns.lstrip("/")  # a namespace given by launch / -r __ns:=
+        from_ns = NAMESPACE.fullmatch(ns)
+        default_id = robot_id if robot_id is not None else int(from_ns.group(1)) if from_ns else 0
+        self.robot_id = params.integer(self, "robot_id", default_id, minimum=0)
+        if from_ns and int(from_ns.group(1)) != self.robot_id:
+            if not remapped:
+                self.destroy_node()
+                raise WrongNamespace(self.robot_id)
+            raise ConfigError("robot_id", f"{self.robot_id} disagrees with the namespace {ns}",
+                              "give only one of them, or the same id in both")
         self.seed = params.integer(self, "seed", 0, minimum=0)
         self.run = params.integer(self, "run", 0, minimum=0)
         self.trial = params.integer(self, "trial", 0, minimum=0)
         self.swarm_size = params.integer(self, "swarm_size", 1, minimum=1)
         self.world = params.text(self, "world", "/world")
         self.traits = params.declare_traits(self)
-        self.behavior = params.declare_behavior(self)
+        self.choice = params.declare_behavior(self)
+        self.behavior = None  # resolved against the world's scenario in set_world
 
         self.pub_pose = self.create_publisher(PoseStamped, "pose", qos.DATA)
         self.pub_light = self.create_publisher(Illuminance, "light", qos.DATA)
         self.pub_led = self.create_publisher(ColorRGBA, "led", qos.DATA)
         self.pub_clock = self.create_publisher(TimeReference, "clock", qos.DATA)
         self.pub_traits = self.create_publisher(String, "traits", qos.LATCHED)
-        self.pub_traits.publish(convert.traits_to_msg(self.robot_id, self.traits,
-                                                      params.behavior_to_values(self.behavior), self.seed, self.run))
+        if not lean:
+            self.add_on_set_parameters_callback(self._on_set_parameters)
         self.model: SwarmModel | None = None
         self.col = 0
         self.scenario = None
@@ -95,7 +128,10 @@ class RobotNode(Node):
         """Adopt the world's scenario, with this robot's own behaviour."""
         if self.model is not None:
             return
-        self.scenario = scenario_from_document(doc).replace(behavior=self.behavior)
+        world = scenario_from_document(doc)
+        self.world_behavior = world.behavior
+        self.behavior = self.choice.resolve(world.behavior)
+        self.scenario = world.replace(behavior=self.behavior)
         self.mode = doc.get("mode", "lockstep")
         self.clock_period_s = clock_period_from_document(doc)
         if shared is not None:
@@ -103,6 +139,37 @@ class RobotNode(Node):
         else:
             n = max(self.swarm_size, int(doc.get("robots", 1)))
             self.model = RobotModel(self.scenario, self.traits, self.robot_id, self.seed, self.run, self.trial, n)
+        self.publish_traits()
+
+    def publish_traits(self) -> None:
+        """The transient-local ``traits`` record: id, traits, behaviour, seed, run."""
+        self.pub_traits.publish(convert.traits_to_msg(self.robot_id, self.traits,
+                                                      params.behavior_to_values(self.behavior), self.seed, self.run))
+
+    def _on_set_parameters(self, changes) -> SetParametersResult:
+        """``ros2 param set``: validate like at start-up; apply from the next step or refuse."""
+        values = {}
+        choice = self.choice
+        try:
+            for p in changes:
+                if p.name in TRAIT_NAMES:
+                    values[p.name] = p.value
+                elif params.is_behavior_parameter(p.name):
+                    choice = choice.with_parameter(p.name, p.value)
+            traits = traits_from_mapping(values, base=self.traits) if values else self.traits
+            behavior = choice.resolve(self.world_behavior) if self.model is not None else None
+        except ConfigError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        self.traits, self.choice = traits, choice
+        if self.model is not None:
+            if values:
+                self.model.set_traits(SwarmTraits.from_robots([traits], ids=[self.robot_id]))
+            if behavior != self.behavior:
+                self.behavior = behavior
+                self.scenario = self.scenario.replace(behavior=behavior)
+                self.model.set_behavior(behavior)
+            self.publish_traits()
+        return SetParametersResult(successful=True)
 
     def set_state(self, doc: dict) -> None:
         state = doc.get("state")
@@ -165,7 +232,7 @@ class RobotNode(Node):
 
 
 def robot_id_from_args(argv) -> int | None:
-    """The ``-p robot_id:=N`` of a command line (the namespace must be known before the node exists)."""
+    """The ``-p robot_id:=N`` of a command line (saves building the node twice, see :class:`WrongNamespace`)."""
     for a in argv or []:
         m = re.fullmatch(r"(?:robot:)?robot_id:=(\d+)", a)
         if m:
@@ -173,9 +240,17 @@ def robot_id_from_args(argv) -> int | None:
     return None
 
 
+def make_robot(argv, **kwargs) -> RobotNode:
+    """A robot node in namespace ``kilobot_<id>``, its id from the command line or the parameters."""
+    try:
+        return RobotNode(robot_id_from_args(argv), **kwargs)
+    except WrongNamespace as wrong:
+        return RobotNode(wrong.robot_id, **kwargs)
+
+
 def main(args=None):
     argv = sys.argv if args is None else args
-    run_node(PROG, lambda: RobotNode(robot_id_from_args(argv)), args=args)
+    run_node(PROG, lambda: make_robot(argv), args=args)
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """The physics a robot node runs: the core's step function on a (1, 1) or (1, N) state.
 
-No ROS imports. A standalone robot node owns a :class:`RobotModel` (one robot, exactly
+No node code here (ROS message types only through :mod:`.convert`'s CDR layout). A standalone robot node owns a :class:`RobotModel` (one robot, exactly
 ``sim.init_state(..., robot_index=[i])`` + ``sim.step``). A ``swarm`` process in lockstep mode
 steps all its robots in one vectorised call (:class:`SwarmModel`); since every random number
 is keyed by (seed, run, robot), each robot's trajectory is the same either way, and Kuramoto
@@ -14,7 +14,7 @@ import numpy as np
 from ..core import sim
 from ..core.scenario import Scenario
 from ..core.traits import RobotTraits, SwarmTraits
-from .convert import RobotSample, robot_cdr, robot_cloud_cdr
+from .convert import robot_cdr, robot_cloud_cdr
 from .scenarios import start_pose
 
 
@@ -41,14 +41,15 @@ class SwarmModel:
     def step(self) -> None:
         sim.step(self.state, self.scenario, self.table)
 
-    def sample(self, col: int, stamp_ns: int) -> RobotSample:
-        st = self.state
-        return RobotSample(
-            robot_id=int(self.ids[col]), step=st.step, stamp_ns=stamp_ns, x_m=float(st.x[0, col]),
-            y_m=float(st.y[0, col]), theta_rad=float(st.theta[0, col]), reading=float(st.reading[0, col]),
-            led=int(st.led[0, col]), ticks=float(st.ticks[0, col]), tick_hz=self.scenario.tick_hz,
-            reading_variance=float(self.variance[col]),
-        )
+    def set_traits(self, traits: SwarmTraits) -> None:
+        """New traits for the same robots, from the next step on (see :func:`sim.set_traits`)."""
+        sim.set_traits(self.state, traits)
+        self.variance = traits.values["sensor_noise"] ** 2 / self.scenario.sensor.samples
+
+    def set_behavior(self, behavior) -> None:
+        """Run ``behavior`` from the next step on, its program started afresh."""
+        self.scenario = self.scenario.replace(behavior=behavior)
+        sim.restart_behavior(self.state, self.scenario)
 
     def serialized(self, stamp_ns, cols=slice(None)):
         """Serialized ``(pose, light, led, clock)`` lists for columns ``cols`` (all by default),

@@ -4,6 +4,10 @@ Parameters are declared with dynamic typing so that ``-p clock_rate:=1`` (an int
 accepted for a float trait; every value then goes through the core's validators and a bad
 one raises :class:`~kilobot_twin.errors.ConfigError` naming the parameter. Node ``main``
 functions print that one line and exit with code 2 (:func:`report_and_exit`).
+
+Parameters are read-only unless declared otherwise: ``ros2 param set`` on them is refused
+(what a node read at start-up would not change). A robot's traits and behaviour can change at
+run time (see :class:`~kilobot_twin.nodes.robot.RobotNode`), through the same validators.
 """
 
 from __future__ import annotations
@@ -15,16 +19,14 @@ from typing import Any
 from rcl_interfaces.msg import ParameterDescriptor
 
 from ..core import behaviors as B
-from ..core.scenario import Scenario
+from ..core.scenario import behavior_from_dict
 from ..core.traits import TRAIT_DEFAULTS, TRAIT_NAMES, RobotTraits, traits_from_mapping
 from ..errors import ConfigError
 
-_DYNAMIC = ParameterDescriptor(dynamic_typing=True)
 
-
-def declare(node, name: str, default: Any, description: str = "") -> Any:
+def declare(node, name: str, default: Any, description: str = "", read_only: bool = True) -> Any:
     """Declare one parameter (dynamic typing) and return its value."""
-    desc = ParameterDescriptor(dynamic_typing=True, description=description)
+    desc = ParameterDescriptor(dynamic_typing=True, description=description, read_only=read_only)
     return node.declare_parameter(name, default, desc).value
 
 
@@ -48,60 +50,72 @@ def integer(node, name: str, default: int, minimum: int | None = None) -> int:
     return v
 
 
-def text(node, name: str, default: str, choices=None) -> str:
-    v = declare(node, name, str(default))
+def text(node, name: str, default: str, choices=None, description: str = "", read_only: bool = True) -> str:
+    v = declare(node, name, str(default), description, read_only)
     if not isinstance(v, str):
         raise ConfigError(name, f"expected a string, got {v!r}", f"e.g. -p {name}:={default}")
     if choices is not None and v not in choices:
-        raise ConfigError(name, f"unknown value {v!r}", f"use one of {', '.join(choices)}")
+        shown = ", ".join(repr(c) if c == "" else c for c in choices)
+        raise ConfigError(name, f"unknown value {v!r}", f"use one of {shown}")
     return v
 
 
 def declare_traits(node) -> RobotTraits:
-    """One parameter per trait (defaults from :class:`RobotTraits`), validated by the core."""
+    """One parameter per trait (defaults from :class:`RobotTraits`), validated by the core; settable."""
     values = {}
     for name in TRAIT_NAMES:
-        v = declare(node, name, TRAIT_DEFAULTS[name], "robot trait, see kilobot_twin.core.traits.RobotTraits")
-        values[name] = v
+        values[name] = declare(node, name, TRAIT_DEFAULTS[name], "robot trait, see kilobot_twin.core.traits.RobotTraits",
+                               read_only=False)
     return traits_from_mapping(values)
 
 
-def declare_behavior(node) -> Any:
-    """``behavior`` (the kind) plus ``<kind>.<field>`` for every behaviour's fields.
+@dataclasses.dataclass
+class BehaviorChoice:
+    """What a robot was told about its behaviour: ``kind`` ('' = the world's) and the fields set
+    explicitly (``<kind>.<field>`` given as an override or with ``ros2 param set``)."""
 
-    Defaults are the core dataclasses'; only the chosen kind's values are used.
+    kind: str
+    explicit: dict[str, dict[str, Any]]
+
+    def resolve(self, world_behavior) -> Any:
+        """The behaviour to run in a world whose scenario runs ``world_behavior``."""
+        kind = self.kind or world_behavior.name
+        base = behavior_to_values(world_behavior) if kind == world_behavior.name else {"kind": kind}
+        return behavior_from_dict({**base, **self.explicit.get(kind, {})}, where=f"{kind}.")
+
+    def with_parameter(self, name: str, value: Any) -> "BehaviorChoice":
+        """A copy with one ``behavior`` / ``<kind>.<field>`` parameter changed; the kind's values
+        are validated (raises :class:`ConfigError`), what they give in a world by :meth:`resolve`."""
+        if name == "behavior":
+            if value != "":
+                behavior_from_dict({"kind": value, **self.explicit.get(value, {})}, where=f"{value}.")
+            return BehaviorChoice(value, self.explicit)
+        kind, _, fld = name.partition(".")
+        fields = {**self.explicit.get(kind, {}), fld: value}
+        behavior_from_dict({"kind": kind, **fields}, where=f"{kind}.")
+        return BehaviorChoice(self.kind, {**self.explicit, kind: fields})
+
+
+def is_behavior_parameter(name: str) -> bool:
+    kind, dot, fld = name.partition(".")
+    return name == "behavior" or (dot == "." and kind in B.BEHAVIORS)
+
+
+def declare_behavior(node) -> BehaviorChoice:
+    """``behavior`` (the kind; empty: the world's) plus ``<kind>.<field>`` for every behaviour's
+    fields (defaults: the core dataclasses'), settable. Every kind's values are validated at once
+    (a typo never waits silently); the fields given explicitly are kept for :meth:`BehaviorChoice.resolve`.
     """
-    default_kind = Scenario().behavior.name
-    kind = declare(node, "behavior", default_kind, f"one of {', '.join(B.BEHAVIORS)}")
-    if kind not in B.BEHAVIORS:
-        raise ConfigError("behavior", f"unknown behaviour {kind!r}", f"use one of {', '.join(B.BEHAVIORS)}")
-    built = {}
+    kind = text(node, "behavior", "", choices=[""] + list(B.BEHAVIORS),
+                description=f"empty: the world's behaviour; or one of {', '.join(B.BEHAVIORS)}", read_only=False)
+    given = set(node._parameter_overrides)  # the names set on the command line or in a params file
+    explicit: dict[str, dict[str, Any]] = {}
     for k, cls in B.BEHAVIORS.items():
-        values = {f.name: declare(node, f"{k}.{f.name}", f.default) for f in dataclasses.fields(cls) if f.init}
-        built[k] = behavior_from_values(k, values)  # validate every kind: a typo never waits silently
-    return built[kind]
-
-
-def behavior_from_values(kind: str, values: dict) -> Any:
-    cls = B.BEHAVIORS[kind]
-    out = {}
-    for f in dataclasses.fields(cls):
-        if f.name not in values:
-            continue
-        v = values[f.name]
-        if isinstance(f.default, int) and not isinstance(f.default, bool):
-            if isinstance(v, float) and v.is_integer():
-                v = int(v)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ConfigError(f"{kind}.{f.name}", f"expected a positive integer, got {v!r}", "write e.g. 31")
-        elif isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ConfigError(f"{kind}.{f.name}", f"expected a number, got {v!r}", "write a plain number")
-        elif v < 0:
-            raise ConfigError(f"{kind}.{f.name}", f"must be non-negative, got {v}", "use a value >= 0")
-        out[f.name] = float(v) if not isinstance(f.default, int) else v
-    if kind == "phototaxis" and not 0.0 <= out.get("p_right", 0.5) <= 1.0:
-        raise ConfigError("phototaxis.p_right", f"{out['p_right']} is not a probability", "use a value in [0, 1]")
-    return cls(**out)
+        values = {f.name: declare(node, f"{k}.{f.name}", f.default, f"behaviour {k}: {f.name}", read_only=False)
+                  for f in dataclasses.fields(cls) if f.init}
+        behavior_from_dict({"kind": k, **values}, where=f"{k}.")
+        explicit[k] = {name: v for name, v in values.items() if f"{k}.{name}" in given}
+    return BehaviorChoice(kind, explicit)
 
 
 def behavior_to_values(behavior) -> dict:
