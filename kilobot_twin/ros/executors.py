@@ -90,7 +90,8 @@ def run_node(prog: str, make_node, run=spin_node, on_exit=None, args=None) -> No
     spin loop (exit code 0: launch reports "finished cleanly"); build the node with
     ``make_node()``; ``run(node)`` (default: spin it); a bad parameter (:class:`ConfigError`)
     ends it with one line and exit code 2; ``on_exit(node)`` (e.g. close a bag) and
-    ``destroy_node`` always run, with the context still up; then ``rclpy.try_shutdown``.
+    ``destroy_node`` always run, with the context still up; then ``rclpy.try_shutdown``, and the
+    process ignores further SIGINT / SIGTERM while the interpreter exits.
     """
     from ..errors import ConfigError
     from . import params
@@ -112,3 +113,7 @@ def run_node(prog: str, make_node, run=spin_node, on_exit=None, args=None) -> No
                 on_exit(node)
             node.destroy_node()
         rclpy.try_shutdown()
+        # Done: Python's finalisation puts Python-level handlers back to SIG_DFL, and a late
+        # second Ctrl-C would then kill the process with -SIGINT (launch: "process has died").
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, signal.SIG_IGN)

@@ -119,8 +119,17 @@ def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, 
         raise ConfigError("--seed", f"must be >= 0, got {seed}", "give a non-negative integer")
     if traits:
         load_swarm_traits(traits, robots, seed, field="--traits")
-    if (Path(out) / "metadata.yaml").exists() or any(Path(out).glob("*.mcap")):
-        raise ConfigError("--out", f"{out} already holds a bag", "choose a new bag name or delete the old one")
+    check_new_bag(out, "--out")
+
+
+def check_new_bag(out: str | Path, field: str) -> None:
+    """Refuse a bag path that would overwrite something: a file, or a folder that is not empty."""
+    path = Path(out)
+    if path.is_file():
+        raise ConfigError(field, f"{out} is a file", "give a new folder name for the bag, e.g. bags/run1")
+    if path.is_dir() and any(path.iterdir()):
+        what = "holds a bag" if (path / "metadata.yaml").exists() or any(path.glob("*.mcap")) else "is not empty"
+        raise ConfigError(field, f"{out} already {what}", "choose a new bag name or delete the old one")
 
 
 def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 20.0, seed: int = 0,

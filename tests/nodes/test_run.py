@@ -177,3 +177,60 @@ def test_recorder_killed_with_sigkill_leaves_a_repairable_bag(tmp_path):
     poses = [m for t, m in msgs if t == "/kilobot_0/pose"]
     assert len(poses) > 10
     assert all(np.isfinite(m.pose.position.x) and m.header.frame_id == "arena" for m in poses)
+
+
+def test_recorder_node_refuses_an_existing_bag(tmp_path):
+    """The node itself (as `ros2 run` / launch start it), not only `kilobot-twin run`: one line, exit
+    2, the old bag untouched."""
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "metadata.yaml").write_text("rosbag2_bagfile_information: {message_count: 4062}\n")
+    (old / "old_0.mcap").write_bytes(b"\x89MCAP0\r\n" + bytes(100))
+    before = {p.name: p.read_bytes() for p in old.iterdir()}
+    res = subprocess.run([sys.executable, "-m", "kilobot_twin.nodes.recorder", "--ros-args", "-p", f"out:={old}"],
+                         capture_output=True, text=True, env=ENV, timeout=60)
+    assert res.returncode == 2, res.stderr
+    lines = [ln for ln in res.stderr.strip().splitlines() if ln.strip()]
+    assert len(lines) == 1 and "out:" in lines[0] and "already holds a bag" in lines[0], res.stderr
+    assert {p.name: p.read_bytes() for p in old.iterdir()} == before
+
+
+def _group_sigint_try(tmp_path, k: int) -> tuple[int, list, bool, str]:
+    """World, swarm, analysis and recorder in one new process group (as a script or CI starts them),
+    then SIGINT to the whole group, twice (a terminal's Ctrl-C and launch's own SIGINT)."""
+    out = tmp_path / f"grp{k}"
+    env = dict(ENV, ROS_DOMAIN_ID=str(int(ENV.get("ROS_DOMAIN_ID", "100")) % 100 + 120))
+    args = {"recorder": ["-p", f"out:={out}"],
+            "analysis": [],
+            "world": ["-p", "robots:=3", "-p", "mode:=realtime", "-p", "duration_s:=60.0", "-p", "scenario:=blink",
+                      "-p", "wait_for_nodes:=recorder"],
+            "swarm": ["-p", "robots:=3"]}
+    first = None
+    procs = {}
+    for name, a in args.items():
+        procs[name] = subprocess.Popen([sys.executable, "-m", f"kilobot_twin.nodes.{name}", "--ros-args", *a],
+                                       env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                       stdin=subprocess.DEVNULL, process_group=0 if first is None else first)
+        first = first or procs[name].pid
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not (mcap_path(out).exists() and mcap_path(out).stat().st_size > 2000):
+        time.sleep(0.2)
+    time.sleep(0.5 + 0.3 * k)  # interrupt at different moments
+    os.killpg(first, signal.SIGINT)
+    time.sleep(0.05 * k)
+    os.killpg(first, signal.SIGINT)
+    logs = {name: p.communicate(timeout=60)[0] for name, p in procs.items()}
+    codes = [p.returncode for p in procs.values()]
+    return codes, logs, (out / "metadata.yaml").exists(), out
+
+
+@pytest.mark.parametrize("tries", [pytest.param(10, marks=pytest.mark.slow), 2])
+def test_sigint_to_the_whole_process_group_finalises_the_bag(tmp_path, tries):
+    """10 of 10 (slow; 2 by default): exit 0, no traceback, metadata.yaml, a bag other tools read."""
+    for k in range(tries):
+        codes, logs, finalised, out = _group_sigint_try(tmp_path, k)
+        assert codes == [0, 0, 0, 0], (k, codes, logs)
+        assert not any("Traceback" in text for text in logs.values()), (k, logs)
+        assert finalised, (k, logs)
+        assert rerun_check(mcap_path(out)).returncode == 0
+        assert summary_counts(out)["/kilobot_0/pose"] > 0
