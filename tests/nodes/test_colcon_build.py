@@ -28,3 +28,14 @@ def test_colcon_build_installs_executables_and_ament_index(tmp_path):
     assert (share / "ament_index" / "resource_index" / "packages" / "kilobot_twin").is_file()
     assert (share / "kilobot_twin" / "package.xml").is_file()
     assert (share / "kilobot_twin" / "launch" / "twin.launch.py").is_file()
+    # The plain build's nodes start (what `ros2 run kilobot_twin <node>` executes), from the install
+    # space alone: the checkout is not on the path.
+    site = ws / "install" / "kilobot_twin" / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages"
+    run_env = dict(env, PYTHONPATH=str(site))
+    for exe in ("robot", "swarm", "world", "analysis", "recorder", "replay"):
+        mod = subprocess.run([sys.executable, "-c", f"import kilobot_twin.nodes.{exe} as m; print(m.__file__)"],
+                             capture_output=True, text=True, cwd=ws, env=run_env, timeout=60)
+        assert mod.stdout.strip().startswith(str(site)), (exe, mod.stdout + mod.stderr)
+    world = subprocess.run([str(lib / "world"), "--ros-args", "-p", "robots:=0", "-p", "duration_s:=1.0"],
+                           capture_output=True, text=True, cwd=ws, env=run_env, timeout=60)
+    assert world.returncode == 0, world.stdout + world.stderr
