@@ -3,8 +3,8 @@
 Publishes under ``/analysis/``, once every ``period_s`` of simulated time (parameter, default
 1 s; 0 = every step), in this order:
 
-- ``stamp`` (builtin_interfaces/Time): the simulated time of the state the metrics below are
-  computed from (the stamp of a swarm's ``robots`` cloud / the robots' poses);
+- ``time_s`` (std_msgs/Float64): the simulated time in seconds of the state the metrics below
+  are computed from (the stamp of a swarm's ``robots`` cloud / the robots' poses);
 - std_msgs/Float64, NaN where a metric is undefined (no robots heard; no blink program), so
   that the k-th message of every metric topic belongs to the k-th ``stamp``:
   ``led_red_fraction``, ``led_blue_fraction`` (fraction of robots showing red / blue);
@@ -29,7 +29,6 @@ import json
 import re
 
 import numpy as np
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2, TimeReference
@@ -82,7 +81,7 @@ class AnalysisNode(Node):
         self.subscribed: set[str] = set()
         self.covered: set[int] = set()  # robots read from a swarm's cloud
         self._robot_subs: dict[int, list] = {}
-        self.pub_stamp = self.create_publisher(Time, "~/stamp", qos.DATA)
+        self.pub_time = self.create_publisher(Float64, "~/time_s", qos.DATA)
         self.pubs = {m: self.create_publisher(Float64, f"~/{m}", qos.DATA) for m in METRICS}
         self.pub_robots = self.create_publisher(UInt32, "~/robots", qos.DATA)
         self.latest: dict = {}
@@ -165,7 +164,7 @@ class AnalysisNode(Node):
         ids = sorted(self.x)
         m = swarm_metrics([self.x[i] for i in ids], [self.y[i] for i in ids], [self.led[i] for i in ids if i in self.led],
                           [self.ticks[i] for i in ids if i in self.ticks], self.scenario, len(self.cells))
-        self.pub_stamp.publish(convert.ns_to_time(stamp_ns))
+        self.pub_time.publish(Float64(data=stamp_ns / convert.NS_PER_S))
         for k, v in m.items():
             self.pubs[k].publish(Float64(data=v))
         self.pub_robots.publish(UInt32(data=len(ids)))

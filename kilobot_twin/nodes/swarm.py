@@ -6,7 +6,12 @@ draw from the default population of :mod:`kilobot_twin.ros.scenarios`), ``seed``
 each /clock step, in realtime on one wall timer of period ``dt_s``; Kuramoto coupling between
 the process's robots is then exact in both modes),
 ``stats_file`` (JSON written at exit: messages published, CPU, memory),
-``crash_after_steps`` (fault injection for tests: the process dies after that many steps).
+``crash_after_steps`` (fault injection for tests: the process dies after that many steps),
+``slices`` and ``slice_index`` (one swarm across K processes, on one host or several: process
+k of K owns the k-th of K contiguous blocks of the robot ids; give each its own node name,
+e.g. ``-r __node:=swarm_1``, so that its ``members`` and ``robots`` topics differ; the world
+waits for all of them. Kuramoto coupling acts within a process only, so a coupled scenario is
+refused with slices > 1).
 
 A batched swarm also publishes ``~/members`` (std_msgs/String JSON, transient-local: the ids
 it covers) and, after its robots' messages of each step, ``~/robots`` (sensor_msgs/PointCloud2,
@@ -26,6 +31,8 @@ import resource
 import sys
 import time
 
+import numpy as np
+
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
@@ -35,6 +42,7 @@ from std_msgs.msg import String
 
 from ..core import behaviors as B
 from ..core.traits import TRAIT_NAMES
+from ..errors import ConfigError
 from ..ros import convert, params, qos
 from ..ros.executors import make_executor, run_node, spin
 from ..ros.model import SwarmModel
@@ -65,8 +73,16 @@ class SwarmNode(Node):
         self.batched = bool(params.declare(self, "batched", True))
         self.stats_file = params.text(self, "stats_file", "")
         self.crash_after_steps = params.integer(self, "crash_after_steps", -1)
-        self.traits = load_swarm_traits(params.text(self, "traits_file", ""), self.n_robots, self.seed)
-        self.n_robots = len(self.traits)
+        self.slices = params.integer(self, "slices", 1, minimum=1)
+        self.slice_index = params.integer(self, "slice_index", 0, minimum=0)
+        if self.slice_index >= self.slices:
+            raise ConfigError("slice_index", f"must be < slices = {self.slices}, got {self.slice_index}",
+                              f"use 0 .. {self.slices - 1}")
+        traits = load_swarm_traits(params.text(self, "traits_file", ""), self.n_robots, self.seed)
+        self.n_robots = len(traits)  # robots of the whole swarm
+        if self.slices > len(traits):
+            raise ConfigError("slices", f"{self.slices} processes for {len(traits)} robots", "use at most one per robot")
+        self.traits = traits.subset(np.array_split(np.arange(len(traits)), self.slices)[self.slice_index])
 
         self.robots: list[RobotNode] = []
         self.model: SwarmModel | None = None
@@ -98,6 +114,9 @@ class SwarmNode(Node):
         """Create the robot nodes (after the world's scenario document arrived) and add them."""
         doc = self.world_doc
         scenario = scenario_from_document(doc)
+        if self.slices > 1 and scenario.coupling_per_s > 0:
+            raise ConfigError("slices", "Kuramoto coupling acts within one process only",
+                              "run a coupled scenario (sync) with slices:=1")
         behavior = scenario.behavior if not self.behavior_kind else B.BEHAVIORS[self.behavior_kind]()
         scenario = scenario.replace(behavior=behavior)
         self.mode = doc.get("mode", "lockstep")
