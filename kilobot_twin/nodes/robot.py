@@ -46,6 +46,7 @@ from ..ros import convert, params, qos
 from ..ros.executors import run_node
 from ..ros.model import RobotModel, SwarmModel
 from ..ros.scenarios import clock_period_from_document, parse_world_document, scenario_from_document
+from ..ros.stepping import StepRule
 
 PROG = "kilobot-twin robot"
 NAMESPACE = re.compile(r"/kilobot_(\d+)")
@@ -132,6 +133,7 @@ class RobotNode(Node):
         self.world_behavior = world.behavior
         self.behavior = self.choice.resolve(world.behavior)
         self.scenario = world.replace(behavior=self.behavior)
+        self.rule = StepRule(self.scenario.dt_s, self.scenario.n_steps)
         self.mode = doc.get("mode", "lockstep")
         self.clock_period_s = clock_period_from_document(doc)
         if shared is not None:
@@ -183,14 +185,13 @@ class RobotNode(Node):
                 self.timer.cancel()
 
     def on_clock(self, ns: int) -> None:
-        """Lockstep: publish step 0 on the first tick, then one step per new tick."""
+        """Lockstep: publish step 0 on the first tick, then one step per new tick (:class:`StepRule`)."""
         if self.model is None or self.mode != "lockstep" or self.done:
             return
-        k = self.model.step_index
-        if ns == 0 and k == 0 and self.published == 0:
-            self.publish_sample(0)
-        elif ns == convert.step_stamp_ns(k + 1, self.scenario.dt_s):
+        action = self.rule.on_clock(ns, self.model.step_index)
+        if action == StepRule.STEP:
             self.model.step()
+        if action is not None:
             self.publish_sample(ns)
 
     # --- outputs --------------------------------------------------------------------------------
@@ -216,10 +217,12 @@ class RobotNode(Node):
         return max(0, time.time_ns() - self.start_wall_ns)
 
     def _on_timer(self) -> None:
+        """Realtime: take the steps due since the start (:meth:`StepRule.due`)."""
         if self.done:
             return
-        self.model.step()
-        self.publish_sample(self._wall_stamp())
+        for _ in range(self.rule.due(self._wall_stamp(), self.model.step_index)):
+            self.model.step()
+            self.publish_sample(self._wall_stamp())
 
     def _on_world_msg(self, msg: String) -> None:
         self.set_world(parse_world_document(msg.data))

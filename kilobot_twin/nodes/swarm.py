@@ -6,7 +6,6 @@ draw from the default population of :mod:`kilobot_twin.ros.scenarios`), ``seed``
 each /clock step, in realtime on one wall timer of period ``dt_s``; Kuramoto coupling between
 the process's robots is then exact in both modes),
 ``stats_file`` (JSON written at exit: messages published, CPU, memory),
-``crash_after_steps`` (fault injection for tests: the process dies after that many steps),
 ``slices`` and ``slice_index`` (one swarm across K processes, on one host or several: process
 k of K owns the k-th of K contiguous blocks of the robot ids; give each its own node name,
 e.g. ``-r __node:=swarm_1``, so that its ``members`` and ``robots`` topics differ; the world
@@ -28,7 +27,6 @@ from __future__ import annotations
 import json
 import os
 import resource
-import sys
 import time
 
 import numpy as np
@@ -46,6 +44,7 @@ from ..errors import ConfigError
 from ..ros import convert, params, qos
 from ..ros.executors import make_executor, run_node, spin
 from ..ros.model import SwarmModel
+from ..ros.stepping import StepRule
 from ..ros.scenarios import (clock_period_from_document, load_swarm_traits, parse_world_document,
                              scenario_from_document)
 from .robot import RobotNode
@@ -72,7 +71,6 @@ class SwarmNode(Node):
         self.behavior_kind = params.text(self, "behavior", "", choices=[""] + list(B.BEHAVIORS))
         self.batched = bool(params.declare(self, "batched", True))
         self.stats_file = params.text(self, "stats_file", "")
-        self.crash_after_steps = params.integer(self, "crash_after_steps", -1)
         self.slices = params.integer(self, "slices", 1, minimum=1)
         self.slice_index = params.integer(self, "slice_index", 0, minimum=0)
         if self.slice_index >= self.slices:
@@ -121,6 +119,7 @@ class SwarmNode(Node):
         scenario = scenario.replace(behavior=behavior)
         self.mode = doc.get("mode", "lockstep")
         self.clock_period_s = clock_period_from_document(doc)
+        self.rule = StepRule(scenario.dt_s, scenario.n_steps)
         common = [("seed", self.seed), ("run", self.run), ("trial", self.trial), ("world", self.world),
                   ("swarm_size", max(self.n_robots, int(doc.get("robots", 0))))]
         common += params.behavior_overrides(behavior)
@@ -176,13 +175,10 @@ class SwarmNode(Node):
         time keeps up with the wall clock; those samples carry their publication time, and
         ``late_steps`` in the stats counts them.
         """
-        # Never beyond the scenario's last step: the world's 'done' may arrive late.
-        due = min(self._wall_stamp() // convert.step_stamp_ns(1, self.model.scenario.dt_s),
-                  self.model.scenario.n_steps)
-        behind = due - self.model.step_index
+        behind = self.rule.due(self._wall_stamp(), self.model.step_index)
         if behind > 1:
             self.late_steps += behind - 1
-        for _ in range(max(0, behind)):
+        for _ in range(behind):
             self.model.step()
             self._publish_all(self._wall_stamp())
 
@@ -193,18 +189,13 @@ class SwarmNode(Node):
         if self.model is None:
             for r in self.robots:
                 r.on_clock(ns)
-        elif ns == 0 and self.model.step_index == 0 and self.robots[0].published == 0:
-            self._publish_all(0)
-        elif ns == convert.step_stamp_ns(self.model.step_index + 1, self.model.scenario.dt_s):
-            self.model.step()
-            self._publish_all(ns)
-        else:
             return
-        self.steps += 1
-        if 0 <= self.crash_after_steps < self.steps:
-            self.get_logger().error(f"crash_after_steps={self.crash_after_steps}: simulated robot crash")
-            sys.stderr.flush()
-            os._exit(70)
+        action = self.rule.on_clock(ns, self.model.step_index)
+        if action == StepRule.STEP:
+            self.model.step()
+        if action is not None:
+            self._publish_all(ns)
+            self.steps += 1
 
     def _publish_all(self, stamp_ns) -> None:
         """Every robot's messages of the current step, serialized in one vectorised call."""

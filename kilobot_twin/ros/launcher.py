@@ -134,10 +134,9 @@ def check_new_bag(out: str | Path, field: str) -> None:
 
 def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 20.0, seed: int = 0,
              mode: str = "lockstep", traits: str | None = None, out: str = "bags/run", timeout_s: float | None = None,
-             crash_after_steps: int = -1, echo=None, install_signal_handlers: bool = True) -> RunReport:
+             echo=None, install_signal_handlers: bool = True) -> RunReport:
     """Run the twin as separate processes; returns a :class:`RunReport` (bag finalised in every case).
 
-    ``crash_after_steps`` makes the swarm process die after that many steps (fault injection).
     ``echo(str)`` receives progress lines.
     """
     validate(scenario, robots, duration, seed, mode, traits, out)
@@ -157,8 +156,7 @@ def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 2
         "analysis": _node_cmd("analysis"),
         "world": _node_cmd("world", **world_scenario, duration_s=float(duration), seed=seed, robots=robots, mode=mode,
                            wait_for_nodes="recorder", stats_file=str(world_stats)),
-        "swarm": _node_cmd("swarm", robots=robots, seed=seed, traits_file=traits or "", stats_file=str(swarm_stats),
-                           crash_after_steps=crash_after_steps),
+        "swarm": _node_cmd("swarm", robots=robots, seed=seed, traits_file=traits or "", stats_file=str(swarm_stats)),
     }
     report = RunReport(bag=bag, mode=mode, robots=robots, sim_s=float(duration))
     children: dict[str, Child] = {}

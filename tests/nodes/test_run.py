@@ -121,15 +121,35 @@ def test_nodes_refuse_bad_parameters_with_one_line_and_exit_2(node, param, value
 
 
 def test_crashed_swarm_is_reported_and_the_bag_is_still_finalised(tmp_path):
+    """The swarm process dies (SIGKILL, from outside: no test hook in the node) in mid-run."""
+    import re
+    import threading
+
     out = tmp_path / "crash"
-    rep = run_twin("straight", robots=3, duration=20.0, seed=1, out=str(out), crash_after_steps=30,
+    pids = {}
+
+    def echo(line):
+        m = re.match(r"started (\w+) \(pid (\d+)\)", line)
+        if m:
+            pids[m.group(1)] = int(m.group(2))
+
+    def kill_swarm_mid_run():
+        f = mcap_path(out)
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not (f.exists() and f.stat().st_size > 20_000):
+            time.sleep(0.05)
+        os.kill(pids["swarm"], signal.SIGKILL)
+
+    killer = threading.Thread(target=kill_swarm_mid_run)
+    killer.start()
+    rep = run_twin("straight", robots=3, duration=600.0, seed=1, mode="realtime", out=str(out), echo=echo,
                    install_signal_handlers=False)
+    killer.join()
     assert not rep.ok
-    assert any("swarm exited early with code 70" in p for p in rep.problems), rep.problems
+    assert any(f"swarm exited early with code {-signal.SIGKILL}" in p for p in rep.problems), rep.problems
     assert rerun_check(mcap_path(out)).returncode == 0
     assert (out / "metadata.yaml").exists()
-    n = summary_counts(out)["/kilobot_0/pose"]
-    assert 30 <= n <= 32  # everything published before the crash was recorded
+    assert summary_counts(out)["/kilobot_0/pose"] > 10  # what was published before the crash is in the bag
 
 
 def test_sigterm_on_run_finalises_the_bag(tmp_path):
