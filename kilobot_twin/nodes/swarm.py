@@ -87,7 +87,6 @@ class SwarmNode(Node):
         self.world_doc: dict | None = None
         self.world_ready = Future()
         self.mode = None
-        self.steps = 0
         self.rt_timer = None
         self.start_wall_ns = 0
         self.late_steps = 0
@@ -195,7 +194,6 @@ class SwarmNode(Node):
             self.model.step()
         if action is not None:
             self._publish_all(ns)
-            self.steps += 1
 
     def _publish_all(self, stamp_ns) -> None:
         """Every robot's messages of the current step, serialized in one vectorised call."""

@@ -45,6 +45,7 @@ from std_msgs.msg import String, UInt64
 from ..core.scenario import Scenario
 from ..ros import convert, params, qos
 from ..ros.executors import run_node, spin_node
+from ..ros.stepping import LockstepPacer
 from ..ros.scenarios import NAMED, named_scenario, scenario_file, world_document
 
 PROG = "kilobot-twin world"
@@ -81,8 +82,9 @@ class WorldNode(Node):
         self.n_steps = self.scenario.n_steps
         # One robot's data messages after each step: pose, light, led every step, clock on clock steps.
         steps = np.arange(self.n_steps + 1)
-        self._messages_through = 3 * (steps + 1) + np.cumsum(convert.clock_steps(steps, self.scenario.dt_s,
-                                                                                  self.clock_period_s))
+        self.pacer = LockstepPacer(self.scenario.dt_s, self.n_steps, self.window_steps, self.recorder_lag_steps,
+                                   3 * (steps + 1) + np.cumsum(convert.clock_steps(steps, self.scenario.dt_s,
+                                                                                   self.clock_period_s)))
 
         self.pub_doc = self.create_publisher(String, "~/scenario", qos.LATCHED)
         self.pub_state = self.create_publisher(String, "~/state", qos.LATCHED)
@@ -99,13 +101,9 @@ class WorldNode(Node):
 
         self.finished = Future()
         self.robots: dict[int, str] = {}  # id -> pose topic
-        self.step = -1  # last step published on /clock
-        self.complete = -1  # last step every robot has published its pose for
-        self.reported: dict[int, int] = {}  # step -> robots heard from (poses, or clouds x members)
         self.swarms: dict[str, set[int] | None] = {}  # swarm topic base -> its member ids (None: not yet heard)
         self.covered: set[int] = set()  # robots that a swarm's cloud reports for
         self._pose_subs: dict[int, object] = {}
-        self.recorded = 0  # robot messages the recorder acknowledged
         self._ack_progress_at = time.monotonic()
         self._ack_warned = False
         self._finish_timer = None
@@ -156,6 +154,7 @@ class WorldNode(Node):
             if m and m.group(2) == "pose" and int(m.group(1)) not in self.robots:
                 rid = int(m.group(1))
                 self.robots[rid] = topic
+                self.pacer.robots = len(self.robots)
                 if self.mode == "lockstep":
                     self._pose_subs[rid] = self.create_subscription(
                         PoseStamped, topic, lambda data, rid=rid: self._on_pose(rid, data), qos.DATA, raw=True)
@@ -189,7 +188,7 @@ class WorldNode(Node):
         return True
 
     def _on_members(self, base: str, msg: String) -> None:
-        if self.swarms.get(base) is not None or self.step >= 0:
+        if self.swarms.get(base) is not None or self.pacer.step >= 0:
             return  # a swarm's members are fixed; and once running, the counting is too
         ids = {int(i) for i in json.loads(msg.data).get("robots", [])}
         self.swarms[base] = ids
@@ -216,14 +215,10 @@ class WorldNode(Node):
     def _advance(self) -> None:
         """Publish /clock for every step the window and the recorder allow; finish after the last."""
         dt = self.scenario.dt_s
-        while self.step < self.n_steps and self.step < self.complete + self.window_steps and self._recorder_allows(
-                self.step + 1):
-            self.step += 1
-            self._maybe_update_field(self.step * dt)
-            self.pub_clock.publish(convert.clock_msg(convert.step_stamp_ns(self.step, dt)))
-            if not self.robots:  # nobody to wait for
-                self.complete = self.step
-        if self.complete >= self.n_steps:
+        for k in self.pacer.next_steps(self.await_recorder and not self._ack_timed_out()):
+            self._maybe_update_field(k * dt)
+            self.pub_clock.publish(convert.clock_msg(convert.step_stamp_ns(k, dt)))
+        if self.pacer.all_reported:
             self._wait_for_recorder_then_finish()
 
     def _on_pose(self, rid: int, data: bytes) -> None:
@@ -235,35 +230,10 @@ class WorldNode(Node):
 
     def _report(self, data: bytes, robots: int) -> None:
         """``robots`` robots have published the step in the stamp of ``data``."""
-        if self.step < 0 or self.end_wall_ns:
-            return
-        stamp = convert.stamp_ns_from_cdr(data)
-        k = int(round(stamp / (self.scenario.dt_s * convert.NS_PER_S)))
-        if k <= self.complete or k > self.step or stamp != convert.step_stamp_ns(k, self.scenario.dt_s):
-            return
-        self.reported[k] = self.reported.get(k, 0) + robots
-        advanced = False
-        while self.reported.get(self.complete + 1, 0) >= len(self.robots):
-            self.complete += 1
-            del self.reported[self.complete]
-            advanced = True
-        if advanced:
+        if self.pacer.step >= 0 and not self.end_wall_ns and self.pacer.report(convert.stamp_ns_from_cdr(data), robots):
             self._advance()
 
     # --- recorder back-pressure -----------------------------------------------------------------------
-
-    def _recorder_allows(self, step: int) -> bool:
-        """Step ``step`` may start once the recorder holds every robot message of step
-        ``step - recorder_lag_steps`` (robots keep 200 messages per topic: nothing is overwritten)."""
-        if not self.await_recorder or self._ack_timed_out():
-            return True
-        return self.recorded >= self._robot_messages_through(step - self.recorder_lag_steps)
-
-    def _robot_messages_through(self, step: int) -> int:
-        """Data messages all robots have published after step ``step``."""
-        if step < 0:
-            return 0
-        return len(self.robots) * int(self._messages_through[min(step, self.n_steps)])
 
     def _ack_timed_out(self) -> bool:
         if time.monotonic() - self._ack_progress_at < self.ack_timeout_s:
@@ -271,28 +241,26 @@ class WorldNode(Node):
         if not self._ack_warned:
             self._ack_warned = True
             self.get_logger().warning(f"no progress from the recorder for {self.ack_timeout_s:g} s "
-                                      f"({self.recorded} messages acknowledged): no longer waiting for it")
+                                      f"({self.pacer.recorded} messages acknowledged): no longer waiting for it")
         return True
 
     def _on_recorded(self, msg: UInt64) -> None:
-        if msg.data > self.recorded:
-            self.recorded = int(msg.data)
+        if msg.data > self.pacer.recorded:
+            self.pacer.recorded = int(msg.data)
             self._ack_progress_at = time.monotonic()
-        if self.mode == "lockstep" and self.step >= 0 and not self.end_wall_ns:
+        if self.mode == "lockstep" and self.pacer.step >= 0 and not self.end_wall_ns:
             self._advance()
 
     def _wait_for_recorder_then_finish(self) -> None:
         if self.end_wall_ns or self._finish_timer is not None:
             return
-        total = self._robot_messages_through(self.n_steps)
-        if not self.await_recorder or self.recorded >= total or self._ack_timed_out():
+        if not self.await_recorder or self.pacer.all_recorded() or self._ack_timed_out():
             self._finish()
         elif self._finish_timer is None:
             self._finish_timer = self.create_timer(0.01, self._check_finish)
 
     def _check_finish(self) -> None:
-        total = self._robot_messages_through(self.n_steps)
-        if self.recorded >= total or self._ack_timed_out():
+        if self.pacer.all_recorded() or self._ack_timed_out():
             self._finish_timer.cancel()
             self._finish()
 
