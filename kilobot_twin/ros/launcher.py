@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..outputs import check_out_dir
 from .scenarios import NAMED, is_scenario_file, load_swarm_traits, scenario_file
 
 NODES = ("recorder", "analysis", "world", "swarm")
@@ -121,6 +122,7 @@ def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, 
         load_swarm_traits(traits, robots, seed, field="--traits")
     if (Path(out) / "metadata.yaml").exists() or any(Path(out).glob("*.mcap")):
         raise ConfigError("--out", f"{out} already holds a bag", "choose a new bag name or delete the old one")
+    check_out_dir(out, field="--out")  # not a file, not under a file
 
 
 def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 20.0, seed: int = 0,
