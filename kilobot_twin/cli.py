@@ -285,8 +285,12 @@ def main(argv=None) -> int:
                 print(f"{p}: cost at bias 0 {s['cost_at_zero_bias_m']:.2f} m, best {s['best_cost_m']:.2f} m at "
                       f"{s['best_bias']:+.3f}, R_acc {s['R_acc']}")
             if res.get("twin"):
-                print(f"twin bag: {res['twin']['bag']}\nrerun recording: {res['twin']['rrd']} (open: rerun {res['twin']['rrd']})")
-            print(f"plot: {res['plot']}\nsummary: {res['summary_path']}")
+                from .demo import rerun_command
+
+                print(f"twin bag: {res['twin']['bag']}\nrerun recording: {res['twin']['rrd']} "
+                      f"(open: make view, or {rerun_command(res['twin']['rrd'])})")
+            print(f"plot: {res['plot']}\nsummary: {res['summary_path']}\nthis run: {res['run_dir']} "
+                  f"({Path(args.out) / 'latest'} points at it)")
         elif args.verb == "experiment":
             o = experiment(args.name, args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress)
             for c in o.checks:

@@ -6,11 +6,16 @@
 3. the paper's phototaxis campaign (Fig. 5) on the batch engine: ``results.npz`` (+ Parquet),
    ``phototaxis.png`` and the headline numbers per P_R;
 4. ``summary.json`` / ``summary.md`` tying them together.
+
+Every run writes into a fresh folder ``OUT/run-<UTC time>/`` and points ``OUT/latest`` at it,
+so ``make demo`` works every time and never touches an earlier run (or any other bag).
 """
 
 from __future__ import annotations
 
 import json
+import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +37,7 @@ DEMO_CONFIG = {
 
 
 TWIN = {"scenario": "phototaxis", "robots": 20, "duration": 120.0, "seed": 2023, "mode": "lockstep"}
+QUICK_TWIN_S = 30.0  # simulated seconds of the twin in --quick mode
 
 
 def run_twin_and_view(out: Path, quick: bool = False, echo=print) -> dict:
@@ -40,7 +46,7 @@ def run_twin_and_view(out: Path, quick: bool = False, echo=print) -> dict:
     from .viewer import load_source
     from .viewer.rerun_view import write_rrd
 
-    cfg = dict(TWIN, duration=30.0 if quick else TWIN["duration"])
+    cfg = dict(TWIN, duration=QUICK_TWIN_S if quick else TWIN["duration"])
     bag = out / "bags" / "twin"
     echo(f"twin: {cfg['robots']} robots, {cfg['scenario']}, {cfg['duration']:g} s ({cfg['mode']}) -> {bag}")
     report = run_twin(cfg["scenario"], cfg["robots"], cfg["duration"], cfg["seed"], cfg["mode"], None, str(bag),
@@ -52,10 +58,47 @@ def run_twin_and_view(out: Path, quick: bool = False, echo=print) -> dict:
     return {"bag": str(bag), "rrd": str(out / "twin.rrd"), "run": report, "view": view, "config": cfg}
 
 
+def rerun_command(rrd: str | Path) -> str:
+    """The command that opens ``rrd`` with this environment's viewer (``.venv/bin/rerun`` is not on PATH)."""
+    import shutil
+    import sys
+
+    exe = Path(sys.executable).parent / "rerun"
+    if not exe.exists():
+        exe = Path(shutil.which("rerun") or "rerun")
+    try:
+        exe = exe.relative_to(Path.cwd())
+    except ValueError:
+        pass
+    return f"{exe} {rrd}"
+
+
+def new_run_dir(root: str | Path) -> Path:
+    """A fresh folder ``root/run-YYYYmmdd-HHMMSS[-k]`` (UTC), created here; ``root/latest`` points at it."""
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
+    k = 1
+    while True:
+        run = root / (f"run-{stamp}" if k == 1 else f"run-{stamp}-{k}")
+        try:
+            run.mkdir()
+            break
+        except FileExistsError:
+            k += 1
+    latest = root / "latest"
+    if latest.is_symlink() or not latest.exists():
+        tmp = root / f".latest-{os.getpid()}"
+        tmp.unlink(missing_ok=True)
+        tmp.symlink_to(run.name)
+        os.replace(tmp, latest)  # atomic: readers see the old or the new run, never none
+    return run
+
+
 def run_demo(out: str | Path = "out/demo", quick: bool = False, workers: int | None = None,
              progress: bool = True, twin: bool = True) -> dict:
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    """Run the demo into a fresh ``out/run-<time>/`` (``out/latest`` points at it)."""
+    out = new_run_dir(out)
     twin_res = run_twin_and_view(out, quick) if twin else None
     doc = json.loads(json.dumps(DEMO_CONFIG))
     if quick:
@@ -91,7 +134,8 @@ def run_demo(out: str | Path = "out/demo", quick: bool = False, workers: int | N
         t = summary_doc["twin"]
         lines += ["## The ROS 2 twin", "",
                   f"{t['robots']} individual Kilobots doing phototaxis for {t['duration']:g} s as ROS 2 nodes ({t['mode']}); "
-                  f"bag `{t['bag']}` (rosbag2 MCAP), Rerun recording `{t['rerun']}` (`rerun {t['rerun']}`).", "",
+                  f"bag `{t['bag']}` (rosbag2 MCAP), Rerun recording `{t['rerun']}` (open it with `make view` "
+                  f"or `{rerun_command(t['rerun'])}`; without a GPU add `--web-viewer`).", "",
                   "```", twin_res["run"].text(), "```", ""]
     lines += [
         "## Phototaxis campaign (paper Fig. 5, batch engine)",
@@ -110,4 +154,5 @@ def run_demo(out: str | Path = "out/demo", quick: bool = False, workers: int | N
     lines += ["", "![cost vs bias](phototaxis.png)", ""]
     (out / "summary.md").write_text("\n".join(lines))
     return {"summary": summary_doc, "plot": str(plot), "summary_path": str(out / "summary.md"), "twin": twin_res,
+            "run_dir": str(out),
             "results": str(out / "results.npz"), "cost": cost, "bias": np.asarray(bias)}
