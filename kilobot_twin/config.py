@@ -86,6 +86,8 @@ def config_from_dict(data: Mapping[str, Any], source: str = "", traits_path: str
                     bool(data.get("trials_from_runs", False)), dict(data))
     # Surface bad grid values now, with their key, rather than inside a worker.
     cfg.campaign().points() and [cfg.campaign().scenario_at(p) for p in cfg.campaign().points()]
+    if scenario.start.kind == "poses":  # every (run, robot) has its start pose
+        scenario.start.pose_table(range(runs), swarm.ids, source)
     return cfg
 
 

@@ -106,7 +106,9 @@ def _node_cmd(name: str, **params) -> list[str]:
 def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, traits: str | None, out: str):
     """Reject bad input before any process starts (one line naming the option; exit 2)."""
     if is_scenario_file(scenario):
-        scenario_file(scenario, duration, field="--scenario")
+        sc = scenario_file(scenario, duration, field="--scenario")
+        if sc.start.kind == "poses":  # every robot of the run has its start pose (run 0)
+            sc.start.pose_table([0], load_swarm_traits(traits, robots, seed, field="--traits").ids, scenario)
     elif scenario not in NAMED:
         raise ConfigError("--scenario", f"unknown scenario {scenario!r}",
                           f"use one of {', '.join(NAMED)} or a scenario YAML file")
