@@ -294,7 +294,9 @@ def main(argv=None) -> int:
         elif args.verb == "experiment":
             o = experiment(args.name, args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress)
             for c in o.checks:
-                print(f"[{'met' if c.met else 'NOT MET'}] Fig. {c.figure}: {c.fact}: paper {c.paper}, ours {c.ours}")
+                print(f"[{'met' if c.met else 'NOT MET'}] Fig. {c.figure}: {c.fact}: paper {c.paper}, ours {c.ours}"
+                      + (f" ({c.note})" if c.note else ""))
+            print(f"{sum(c.met for c in o.checks)} of {len(o.checks)} checks met")
             print("\n".join(["plots:"] + o.plots + [f"data: {o.meta['data']}"]))
         elif args.verb == "reproduce":
             doc = reproduce(args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress)

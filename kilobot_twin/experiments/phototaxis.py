@@ -105,9 +105,12 @@ def phototaxis_checks(d) -> list[Check]:
     for p, target in FIG5_MEDIANS.items():
         g = P_RIGHTS.index(p)
         med = float(np.median(cost[g]))
+        # One tolerance for all three: the medians are read off the published violins (0-4 m axis,
+        # one pixel ~ 0.02 m) to about +-0.05 m, plus the Monte Carlo error of our median (its
+        # standard error over 10^4 samples is < 0.02 m) and the unknown part of the authors' set-up;
+        # +-0.15 m is what the cost table uses too. 'About 0' therefore means <= 0.15 m.
         checks.append(Check("5d", f"ensemble median, P_R = {p}", f"~{target:.2f} m", f"{med:.2f} m",
-                            abs(med - target) <= 0.15 if p != 0.5 else med <= 0.4,
-                            "+-0.15 m (P_R = 0.5: 'about 0' read as <= 0.4 m)"))
+                            abs(med - target) <= 0.15, "tolerance +-0.15 m"))
     tail = cost.max(axis=(1, 2))
     checks.append(Check("5d", "heavy upper tail up to ~3-3.9 m", "max 3-3.9 m",
                         ", ".join(f"{t:.1f}" for t in tail), bool(np.all((tail >= 2.7) & (tail <= 4.2)))))
