@@ -282,8 +282,8 @@ def main(argv=None) -> int:
         elif args.verb == "demo":
             res = demo(args.out, args.quick, args.workers, not args.no_progress)
             for p, s in res["summary"]["per_p_right"].items():
-                print(f"{p}: cost at bias 0 {s['cost_at_zero_bias_m']:.2f} m, best {s['best_cost_m']:.2f} m at "
-                      f"{s['best_bias']:+.3f}, R_acc {s['R_acc']}")
+                print(f"{p}: mean cost at bias 0 {s['cost_at_zero_bias_m']:.2f} m, best {s['best_cost_m']:.2f} m at bias "
+                      f"{s['best_bias']:+.3f}, R_acc {s['R_acc']} (biases on the paper's axis)")
             if res.get("twin"):
                 from .demo import rerun_command
 

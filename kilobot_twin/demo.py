@@ -7,7 +7,7 @@
    ``phototaxis.png`` and the headline numbers per P_R;
 4. ``summary.json`` / ``summary.md`` tying them together.
 
-Every run writes into a fresh folder ``OUT/run-<UTC time>/`` and points ``OUT/latest`` at it,
+Every run writes into a fresh folder ``OUT/run-<UTC time>/`` and, once finished, points ``OUT/latest`` at it,
 so ``make demo`` works every time and never touches an earlier run (or any other bag).
 """
 
@@ -74,7 +74,7 @@ def rerun_command(rrd: str | Path) -> str:
 
 
 def new_run_dir(root: str | Path) -> Path:
-    """A fresh folder ``root/run-YYYYmmdd-HHMMSS[-k]`` (UTC), created here; ``root/latest`` points at it."""
+    """A fresh folder ``root/run-YYYYmmdd-HHMMSS[-k]`` (UTC), created here (see :func:`point_latest`)."""
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
     stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
@@ -86,18 +86,23 @@ def new_run_dir(root: str | Path) -> Path:
             break
         except FileExistsError:
             k += 1
+    return run
+
+
+def point_latest(run: Path) -> None:
+    """``run.parent/latest`` -> ``run`` (relative, atomic), unless ``latest`` is a real folder of the user's."""
+    root = run.parent
     latest = root / "latest"
     if latest.is_symlink() or not latest.exists():
         tmp = root / f".latest-{os.getpid()}"
         tmp.unlink(missing_ok=True)
         tmp.symlink_to(run.name)
         os.replace(tmp, latest)  # atomic: readers see the old or the new run, never none
-    return run
 
 
 def run_demo(out: str | Path = "out/demo", quick: bool = False, workers: int | None = None,
              progress: bool = True, twin: bool = True) -> dict:
-    """Run the demo into a fresh ``out/run-<time>/`` (``out/latest`` points at it)."""
+    """Run the demo into a fresh ``out/run-<time>/``; ``out/latest`` points at it when it is done."""
     out = new_run_dir(out)
     twin_res = run_twin_and_view(out, quick) if twin else None
     doc = json.loads(json.dumps(DEMO_CONFIG))
@@ -169,6 +174,7 @@ def run_demo(out: str | Path = "out/demo", quick: bool = False, workers: int | N
                      f"[{s['R_acc'][0]:+.3f}, {s['R_acc'][1]:+.3f}] | {s['N_acc']} |")
     lines += ["", "![cost vs bias](phototaxis.png)", ""]
     (out / "summary.md").write_text("\n".join(lines))
+    point_latest(out)  # only a finished run becomes `latest` (what `make view` opens)
     return {"summary": summary_doc, "plot": str(plot), "summary_path": str(out / "summary.md"), "twin": twin_res,
             "run_dir": str(out),
             "results": str(out / "results.npz"), "cost": cost, "bias": np.asarray(bias)}

@@ -19,6 +19,9 @@ def test_new_run_dir_is_fresh_and_latest_follows(tmp_path):
     a = demo.new_run_dir(tmp_path / "d")
     b = demo.new_run_dir(tmp_path / "d")  # same second: a suffix, never the same folder
     assert a != b and a.is_dir() and b.is_dir()
+    demo.point_latest(a)
+    assert (tmp_path / "d" / "latest").resolve() == a.resolve()
+    demo.point_latest(b)
     assert (tmp_path / "d" / "latest").resolve() == b.resolve()
     assert os.readlink(tmp_path / "d" / "latest") == b.name  # relative: the folder can move
 
@@ -26,7 +29,7 @@ def test_new_run_dir_is_fresh_and_latest_follows(tmp_path):
 def test_latest_that_is_a_real_folder_is_left_alone(tmp_path):
     (tmp_path / "d" / "latest").mkdir(parents=True)
     (tmp_path / "d" / "latest" / "mine.txt").write_text("user data")
-    demo.new_run_dir(tmp_path / "d")
+    demo.point_latest(demo.new_run_dir(tmp_path / "d"))
     assert (tmp_path / "d" / "latest" / "mine.txt").read_text() == "user data"
 
 
@@ -47,3 +50,11 @@ def test_demo_twice_into_the_same_out(tmp_path, monkeypatch, capsys):
     assert _digest(first) == before  # the first run, its bag included, untouched
     printed = capsys.readouterr().out
     assert "make view" in printed and str(second) in printed
+    # The summary says which bias scale its numbers are on and defines its terms.
+    import json
+
+    doc = json.loads((second / "summary.json").read_text())
+    assert doc["bias_scale"] == {"axis": "paper", "wheel_imbalance_per_axis_unit": 10.0}
+    md = (second / "summary.md").read_text()
+    for term in ("**P_R**", "**cost**", "**R_acc**", "**N_acc**", "paper axis"):
+        assert term in md, term
