@@ -1,12 +1,13 @@
 # Two commands do everything on a fresh Debian machine with Python 3.11:
 #   make demo   -- create .venv, install, run the main job
 #   make test   -- create .venv, install, run the tests
+#   make view   -- open the latest demo's Rerun recording (make view-web: in the browser, no GPU needed)
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-slow bench install clean
+.PHONY: demo view view-web pictures test test-slow bench install clean
 
 $(STAMP): requirements.txt setup.py setup.cfg
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -17,8 +18,21 @@ $(STAMP): requirements.txt setup.py setup.cfg
 
 install: $(STAMP)
 
+DEMO_RRD := out/demo/latest/twin.rrd
+
 demo: $(STAMP)
 	$(BIN)/kilobot-twin demo --out out/demo
+
+view: $(STAMP)
+	@test -f $(DEMO_RRD) || { echo "no $(DEMO_RRD) yet: run make demo first"; exit 2; }
+	$(BIN)/rerun $(DEMO_RRD)
+
+view-web: $(STAMP)
+	@test -f $(DEMO_RRD) || { echo "no $(DEMO_RRD) yet: run make demo first"; exit 2; }
+	$(BIN)/rerun --web-viewer $(DEMO_RRD)
+
+pictures: $(STAMP)
+	sh docs/make_pictures.sh
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import ConfigError
+from .outputs import CreatedDirs, check_out_dir, check_out_file
 
 
 # --- verbs as plain functions ------------------------------------------------------------
@@ -23,8 +24,9 @@ def simulate(config: str, out: str | None = None, traits: str | None = None, see
     from .batch import run_campaign
     from .config import load_config
 
-    cfg = load_config(config, traits_path=traits, seed=seed, runs=runs, n_robots=robots)
     out = out or str(Path("results") / (Path(config).stem + ".npz"))
+    check_out_file(out)
+    cfg = load_config(config, traits_path=traits, seed=seed, runs=runs, n_robots=robots)
     result = run_campaign(cfg.campaign(), out=out, workers=workers, progress=progress, parquet=parquet,
                           desc=Path(config).stem)
     result["path"] = out
@@ -35,6 +37,7 @@ def draw_traits(population: str, out: str, seed: int = 0, robots: int | None = N
     """Draw a swarm from a population file (``population: {...}``) and save it as robots."""
     from .core.traits import load_swarm, save_swarm
 
+    check_out_file(out)
     sw = load_swarm(population, seed=seed, n=robots)
     save_swarm(sw, out)
     return Path(out)
@@ -52,6 +55,7 @@ def experiment(name: str, out: str = "out/experiments", preset: str = "paper", q
     """Run one of the paper's experiments, save its arrays and plots, return its outcome."""
     from .experiments import Settings, run_experiment
 
+    check_out_dir(out)
     return run_experiment(name, Settings(preset, quick, seed, workers, progress), out)
 
 
@@ -60,6 +64,7 @@ def reproduce(out: str = "out/reproduce", preset: str = "paper", quick: bool = F
     """Run all eight experiments and write DIR/report.md (+ report.json, figures, arrays)."""
     from .experiments.report import reproduce as _reproduce
 
+    check_out_dir(out)
     return _reproduce(out, preset, quick, seed, workers, progress)
 
 
@@ -67,6 +72,7 @@ def synth(kind: str, hidden: str, out: str, robots: int | None = None, trials: i
     """Write a measured-v1 dataset from the twin with the named effects hidden in it (+ truth.json)."""
     from .gap.synth import synth as _synth
 
+    check_out_dir(out, new=True)
     return _synth(kind, hidden, out, robots, trials, seed)
 
 
@@ -74,6 +80,9 @@ def gap(data: list[str], out: str, model: str | None = None, seed: int = 0, quie
     """Hold the twin against measured data: detect, name, add, show the gap shrink."""
     from .gap.workflow import GapSettings, run_gap
 
+    check_out_dir(out)
+    if any(Path(out).absolute() == Path(d).absolute() for d in data):
+        raise ConfigError("--out", f"{out} is one of the data folders", "give a separate folder for the report")
     return run_gap(data, out, model, GapSettings(seed=seed), log=(lambda *a: None) if quiet else print)
 
 
@@ -81,6 +90,7 @@ def demo(out: str = "out/demo", quick: bool = False, workers: int | None = None,
     """The main job: a phototaxis campaign on embedded defaults, with a plot and a summary."""
     from .demo import run_demo
 
+    check_out_dir(out)
     return run_demo(out, quick=quick, workers=workers, progress=progress)
 
 
@@ -260,6 +270,8 @@ def _positive_int(text: str) -> int:
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
+    # On bad input a verb must leave nothing behind: folders it created and left empty go.
+    created = CreatedDirs(getattr(args, "out", None))
     try:
         if args.verb == "simulate":
             res = simulate(args.config, args.out, args.traits, args.seed, args.runs, args.robots, args.workers,
@@ -270,15 +282,21 @@ def main(argv=None) -> int:
         elif args.verb == "demo":
             res = demo(args.out, args.quick, args.workers, not args.no_progress)
             for p, s in res["summary"]["per_p_right"].items():
-                print(f"{p}: cost at bias 0 {s['cost_at_zero_bias_m']:.2f} m, best {s['best_cost_m']:.2f} m at "
-                      f"{s['best_bias']:+.3f}, R_acc {s['R_acc']}")
+                print(f"{p}: mean cost at bias 0 {s['cost_at_zero_bias_m']:.2f} m, best {s['best_cost_m']:.2f} m at bias "
+                      f"{s['best_bias']:+.3f}, R_acc {s['R_acc']} (biases on the paper's axis)")
             if res.get("twin"):
-                print(f"twin bag: {res['twin']['bag']}\nrerun recording: {res['twin']['rrd']} (open: rerun {res['twin']['rrd']})")
-            print(f"plot: {res['plot']}\nsummary: {res['summary_path']}")
+                from .demo import rerun_command
+
+                print(f"twin bag: {res['twin']['bag']}\nrerun recording: {res['twin']['rrd']} "
+                      f"(open: make view, or {rerun_command(res['twin']['rrd'])})")
+            print(f"plot: {res['plot']}\nsummary: {res['summary_path']}\nthis run: {res['run_dir']} "
+                  f"({Path(args.out) / 'latest'} points at it)")
         elif args.verb == "experiment":
             o = experiment(args.name, args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress)
             for c in o.checks:
-                print(f"[{'met' if c.met else 'NOT MET'}] Fig. {c.figure}: {c.fact}: paper {c.paper}, ours {c.ours}")
+                print(f"[{'met' if c.met else 'NOT MET'}] Fig. {c.figure}: {c.fact}: paper {c.paper}, ours {c.ours}"
+                      + (f" ({c.note})" if c.note else ""))
+            print(f"{sum(c.met for c in o.checks)} of {len(o.checks)} checks met")
             print("\n".join(["plots:"] + o.plots + [f"data: {o.meta['data']}"]))
         elif args.verb == "reproduce":
             doc = reproduce(args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress)
@@ -328,6 +346,7 @@ def main(argv=None) -> int:
             print(f"wrote {res['path']}: {res['robots']} robots x {res['steps']} samples in {res['total_s']:.2f} s")
         return 0
     except ConfigError as exc:
+        created.remove_empty()
         print(f"kilobot-twin: error: {exc}", file=sys.stderr)
         return ConfigError.exit_code
     except KeyboardInterrupt:

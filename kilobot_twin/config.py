@@ -12,6 +12,13 @@ record_every: 0              # >0 streams trajectories to disk
 
 A population inherits the preset's trait defaults (e.g. ``argos-code`` sets
 ``wheel_noise: 0.5``) unless it names the trait itself.
+
+Two scales of heading bias, two names. ``heading_bias`` is always the wheel imbalance b the
+model applies (paper Eq. 7; as in traits files). ``heading_bias_paper_axis`` is a value on the
+paper's heading-bias axis; a run config may use it (in ``swarm.population``, ``swarm.defaults``
+or ``swarm.robots.<id>``) and it is converted with the scenario's preset, b = scale x axis
+(``paper``: 10, ``argos-code``: 1; see docs/presets.md). A file names one scale or the other, so
+it cannot be read on the wrong one; without a preset the paper-axis key is refused.
 """
 
 from __future__ import annotations
@@ -21,11 +28,57 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .batch import Campaign
-from .core.scenario import Scenario, preset_traits, scenario_from_dict
+from .core.scenario import PRESETS, Scenario, bias_axis_scale, preset_traits, scenario_from_dict
 from .core.traits import SwarmTraits, load_swarm, load_yaml, swarm_from_dict
 from .errors import ConfigError
 
 RUN_KEYS = {"scenario", "swarm", "seed", "runs", "grid", "record_every", "trials_from_runs"}
+#: A heading bias on the paper's axis (converted with the preset's scale); ``heading_bias`` is b.
+PAPER_AXIS_KEY = "heading_bias_paper_axis"
+
+
+def _scale_spec(spec, scale: float):
+    """A trait value or a population distribution, multiplied by ``scale`` (non-numbers left for the validator)."""
+    num = (lambda v: v * scale if isinstance(v, (int, float)) and not isinstance(v, bool) else v)
+    if not isinstance(spec, Mapping):
+        return num(spec)
+    out = dict(spec)
+    for k in ("value", "low", "high", "mean", "sd"):
+        if k in out:
+            out[k] = num(out[k])
+    if isinstance(out.get("values"), list):
+        out["values"] = [num(v) for v in out["values"]]
+    return out
+
+
+def paper_axis_to_wheel(traits: Mapping, preset: str | None, where: str, source: str = "") -> dict:
+    """Replace ``heading_bias_paper_axis`` in a traits or population mapping by ``heading_bias`` = scale x axis."""
+    if not isinstance(traits, Mapping) or PAPER_AXIS_KEY not in traits:
+        return traits
+    if "heading_bias" in traits:
+        raise ConfigError(f"{where}{PAPER_AXIS_KEY}", "given together with heading_bias",
+                          "give one: heading_bias (wheel imbalance b) or heading_bias_paper_axis", source)
+    if preset not in PRESETS:
+        raise ConfigError(f"{where}{PAPER_AXIS_KEY}", "the paper's axis needs scenario.preset to set its scale",
+                          f"add scenario: {{preset: paper}} (b = {bias_axis_scale('paper'):g} x axis) or write "
+                          "heading_bias (wheel imbalance b)", source)
+    out = {k: v for k, v in traits.items() if k != PAPER_AXIS_KEY}
+    out["heading_bias"] = _scale_spec(traits[PAPER_AXIS_KEY], bias_axis_scale(preset))
+    return out
+
+
+def _swarm_on_wheel_scale(doc, preset, source):
+    if not isinstance(doc, Mapping):
+        return doc
+    doc = dict(doc)
+    if isinstance(doc.get("population"), Mapping):
+        doc["population"] = paper_axis_to_wheel(doc["population"], preset, "swarm.population.", source)
+    if isinstance(doc.get("defaults"), Mapping):
+        doc["defaults"] = paper_axis_to_wheel(doc["defaults"], preset, "swarm.defaults.", source)
+    if isinstance(doc.get("robots"), Mapping):
+        doc["robots"] = {k: paper_axis_to_wheel(v, preset, f"swarm.robots.{k}.", source)
+                         for k, v in doc["robots"].items()}
+    return doc
 
 
 @dataclass
@@ -71,9 +124,10 @@ def config_from_dict(data: Mapping[str, Any], source: str = "", traits_path: str
         doc = data.get("swarm")
         if doc is None:
             doc = {"population": {"n": n_robots or 1}}
-        doc = dict(doc) if isinstance(doc, Mapping) else doc
+        preset = sc_data.get("preset") if isinstance(sc_data, Mapping) else None
+        doc = _swarm_on_wheel_scale(doc, preset, source)
         if isinstance(doc, Mapping) and isinstance(doc.get("population"), Mapping):
-            defaults = preset_traits(sc_data.get("preset") if isinstance(sc_data, Mapping) else None)
+            defaults = preset_traits(preset)
             pop = {**defaults, **doc["population"]}
             if n_robots is not None:
                 pop["n"] = n_robots
@@ -86,6 +140,8 @@ def config_from_dict(data: Mapping[str, Any], source: str = "", traits_path: str
                     bool(data.get("trials_from_runs", False)), dict(data))
     # Surface bad grid values now, with their key, rather than inside a worker.
     cfg.campaign().points() and [cfg.campaign().scenario_at(p) for p in cfg.campaign().points()]
+    if scenario.start.kind == "poses":  # every (run, robot) has its start pose
+        scenario.start.pose_table(range(runs), swarm.ids, source)
     return cfg
 
 

@@ -19,9 +19,9 @@ def _plt():
     return plt
 
 
-def save(fig, path, dpi: int = 110) -> Path:
-    """Lay out, write and close a figure; returns its path."""
-    fig.tight_layout()
+def save(fig, path, dpi: int = 110, rect=None) -> Path:
+    """Lay out (within ``rect`` of the figure, e.g. to keep room for a figure legend), write and close a figure."""
+    fig.tight_layout(rect=rect)
     fig.savefig(path, dpi=dpi)
     _plt().close(fig)
     return Path(path)
@@ -40,25 +40,32 @@ def cost_vs_bias(bias, cost, labels, path, delta_acc=0.75, title="Phototaxis cos
 
     Parameters
     ----------
-    bias : (N,) heading bias per robot
+    bias : (N,) heading bias per robot (the scale is named by ``xlabel``)
     cost : (G, R, N) cost per grid point, run, robot (m)
     labels : list of G panel titles
     """
     plt = _plt()
     G = cost.shape[0]
-    fig, axes = plt.subplots(1, G, figsize=(4.2 * G, 3.6), sharey=True, squeeze=False)
+    fig, axes = plt.subplots(1, G, figsize=(4.2 * G + 1.0, 4.1), sharey=True, squeeze=False)
     order = np.argsort(bias)
     lim = np.max(np.abs(bias)) or 1.0
     for g, ax in enumerate(axes[0]):
         R = cost.shape[1]
         xs = np.tile(bias, R)
-        ax.scatter(xs, cost[g].reshape(-1), c=xs, cmap=bias_cmap(), vmin=-lim, vmax=lim, s=6, alpha=0.35, lw=0)
-        ax.plot(bias[order], cost[g].mean(axis=0)[order], color="k", lw=2, label="mean")
+        sc = ax.scatter(xs, cost[g].reshape(-1), c=xs, cmap=bias_cmap(), vmin=-lim, vmax=lim, s=6, alpha=0.35, lw=0,
+                        label="one run of one robot")
+        ax.plot(bias[order], cost[g].mean(axis=0)[order], color="k", lw=2, label="mean over runs")
         ax.axhline(delta_acc, color="tab:green", lw=1.5, ls="--", label=f"delta_acc = {delta_acc} m")
         ax.set_title(labels[g])
-        ax.set_xlabel(xlabel)
+        ax.locator_params(axis="x", nbins=5)
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("cost: mean distance to light (m)")
-    axes[0][0].legend(loc="upper center", fontsize=8)
+    axes[0][0].legend(loc="upper center", fontsize=7, framealpha=0.9)
+    cb = fig.colorbar(sc, ax=axes[0].tolist(), shrink=0.85, pad=0.015)
+    cb.solids.set_alpha(1)
+    cb.set_label("dot colour: heading bias\n(red = left, blue = right)", fontsize=8)
+    fig.supxlabel(xlabel, fontsize=10)
     fig.suptitle(title)
-    return save(fig, path, dpi=120)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    _plt().close(fig)
+    return Path(path)

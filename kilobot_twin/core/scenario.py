@@ -25,7 +25,11 @@ class StartSpec:
     """Where robots start.
 
     kind ``origin``: at (0, 0); ``uniform``: uniform in the square [-half_width, half_width]^2;
-    ``grid``: on a square lattice of ``spacing_m`` with ``columns`` per row, centred.
+    ``grid``: on a square lattice of ``spacing_m`` with ``columns`` per row, centred;
+    ``poses``: where the real robots stood, by robot id (``poses``), and if given per Monte
+    Carlo run (``runs``: run index -> poses; a run not listed uses ``poses``). A pose is
+    ``(x_m, y_m, heading_rad)``; a heading of None falls back to ``heading_rad``. Stored as
+    sorted tuples ``(robot_id, x_m, y_m, heading_rad)`` (hashable, exact through JSON).
     ``heading_rad``: a fixed start heading, or None for uniform on [-pi, pi).
     ``shared``: True gives every robot of a run the same start pose (the paper's phototaxis
     study distributes 100 start poses once, one per Monte Carlo run, for all robots).
@@ -40,6 +44,99 @@ class StartSpec:
     heading_rad: float | None = 0.0
     shared: bool = False
     random_phase: bool = False
+    poses: tuple = ()
+    runs: tuple = ()  # ((run index, poses), ...)
+
+    def to_dict(self) -> dict:
+        """The YAML / JSON form (poses as ``{robot id: [x_m, y_m, heading_rad]}``)."""
+        d = {k: v for k, v in dataclasses.asdict(self).items() if k not in ("poses", "runs")}
+        if self.kind == "poses" or self.poses or self.runs:
+            d["poses"] = _poses_doc(self.poses)
+            d["runs"] = {int(r): _poses_doc(p) for r, p in self.runs}
+        return d
+
+    def pose_table(self, runs, robot_ids, source: str = ""):
+        """Start ``(x, y, heading)`` for ``kind: poses``, each (R, N); heading NaN where not given.
+
+        One-line error naming the first run and robot without a pose.
+        """
+        runs = np.asarray(runs, dtype=np.int64).reshape(-1)
+        ids = np.asarray(robot_ids, dtype=np.int64).reshape(-1)
+        per_run = dict(self.runs)
+        base = {int(p[0]): p[1:] for p in self.poses}
+        out = np.full((3, len(runs), len(ids)), np.nan)
+        for i, r in enumerate(runs):
+            table = {int(p[0]): p[1:] for p in per_run[int(r)]} if int(r) in per_run else base
+            for j, rid in enumerate(ids):
+                pose = table.get(int(rid))
+                if pose is None:
+                    where = f"start.runs.{int(r)}" if int(r) in per_run else "start.poses"
+                    raise ConfigError(where, f"no start pose for robot {int(rid)}" + ("" if int(r) in per_run or not per_run
+                                      else f" (run {int(r)} is not in start.runs)"),
+                                      "give every robot id a pose [x_m, y_m, heading_rad]", source)
+                out[0, i, j], out[1, i, j] = pose[0], pose[1]
+                out[2, i, j] = np.nan if pose[2] is None else pose[2]
+        return out[0], out[1], out[2]
+
+
+def _poses_doc(poses) -> dict:
+    return {int(p[0]): [float(p[1]), float(p[2]), None if p[3] is None else float(p[3])] for p in poses}
+
+
+def _parse_poses(doc, where: str, source: str = "") -> tuple:
+    """``{robot id: [x_m, y_m] | [x_m, y_m, heading_rad] | {x_m:, y_m:, heading_rad:}}`` -> sorted tuples."""
+    if not isinstance(doc, Mapping):
+        raise ConfigError(where, f"expected a mapping of robot id: [x_m, y_m, heading_rad], got {doc!r}",
+                          "write e.g. {0: [0.1, -0.2, 1.57], 1: [0.3, 0.0, 0.0]}", source)
+    out = []
+    for k, v in doc.items():
+        rid = _int_key(k, where, "robot id", source)
+        if isinstance(v, Mapping):
+            extra = set(v) - {"x_m", "y_m", "heading_rad"}
+            if extra or "x_m" not in v or "y_m" not in v:
+                raise ConfigError(f"{where}.{rid}", f"expected keys x_m, y_m and optionally heading_rad, got {sorted(v)}",
+                                  "write {x_m: 0.1, y_m: -0.2, heading_rad: 1.57}", source)
+            v = [v["x_m"], v["y_m"], v.get("heading_rad")]
+        if not isinstance(v, (list, tuple)) or len(v) not in (2, 3):
+            raise ConfigError(f"{where}.{rid}", f"expected [x_m, y_m, heading_rad], got {v!r}",
+                              "write [x_m, y_m] or [x_m, y_m, heading_rad]", source)
+        v = list(v) + [None] * (3 - len(v))
+        for name, x in zip(("x_m", "y_m", "heading_rad"), v):
+            if x is None and name == "heading_rad":
+                continue
+            if isinstance(x, bool) or not isinstance(x, (int, float)) or not np.isfinite(x):
+                raise ConfigError(f"{where}.{rid}.{name}", f"expected a number, got {x!r}", "write a plain number", source)
+        out.append((rid, float(v[0]), float(v[1]), None if v[2] is None else float(v[2])))
+    return tuple(sorted(out))
+
+
+def _int_key(k, where, what, source):
+    if isinstance(k, bool) or not (isinstance(k, int) or (isinstance(k, str) and k.strip().isdigit())) or int(k) < 0:
+        raise ConfigError(f"{where}.{k}", f"expected a {what} (integer >= 0), got {k!r}", f"key poses by {what}", source)
+    return int(k)
+
+
+def _parse_start(data, source: str = "") -> StartSpec:
+    if isinstance(data, Mapping) and ("poses" in data or "runs" in data):
+        data = dict(data)
+        poses = _parse_poses(data.pop("poses"), "start.poses", source) if data.get("poses") is not None else ()
+        data.pop("poses", None)
+        runs_doc = data.pop("runs", None) or {}
+        if not isinstance(runs_doc, Mapping):
+            raise ConfigError("start.runs", f"expected a mapping of run index: poses, got {runs_doc!r}",
+                              "write e.g. {0: {0: [0.1, 0.2, 0.0]}}", source)
+        runs = tuple(sorted((_int_key(r, "start.runs", "run index", source),
+                             _parse_poses(p, f"start.runs.{r}", source)) for r, p in runs_doc.items()))
+        spec = dataclasses.replace(_sub(StartSpec, data, "start.", source), poses=poses, runs=runs)
+    else:
+        spec = _sub(StartSpec, data, "start.", source)
+    if spec.kind not in ("origin", "uniform", "grid", "poses"):
+        raise ConfigError("start.kind", f"unknown start {spec.kind!r}", "use origin, uniform, grid or poses", source)
+    if spec.kind == "poses" and not (spec.poses or spec.runs):
+        raise ConfigError("start.poses", "kind: poses without poses", "give {robot id: [x_m, y_m, heading_rad]}", source)
+    if spec.kind != "poses" and (spec.poses or spec.runs):
+        raise ConfigError("start.kind", f"poses given with kind {spec.kind!r}", "write kind: poses", source)
+    return spec
 
 
 @dataclass(frozen=True)
@@ -97,7 +194,7 @@ class Scenario:
             "light": field_to_dict(self.light),
             "sensor": dataclasses.asdict(self.sensor),
             "arena": dataclasses.asdict(self.arena),
-            "start": dataclasses.asdict(self.start),
+            "start": self.start.to_dict(),
             "coupling_per_s": self.coupling_per_s,
             "neighbour_radius_m": self.neighbour_radius_m,
             "cost_window_steps": self.cost_window_steps,
@@ -213,9 +310,7 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "") -> Scenario:
     kw["motors"] = _sub(MotorConfig, data.get("motors"), "motors.", source)
     kw["sensor"] = _sub(SensorModel, data.get("sensor"), "sensor.", source)
     kw["arena"] = _sub(Arena, data.get("arena"), "arena.", source)
-    kw["start"] = _sub(StartSpec, data.get("start"), "start.", source)
-    if kw["start"].kind not in ("origin", "uniform", "grid"):
-        raise ConfigError("start.kind", f"unknown start {kw['start'].kind!r}", "use origin, uniform or grid", source)
+    kw["start"] = _parse_start(data.get("start"), source)
     if "light" in data:
         kw["light"] = field_from_dict(data["light"], source)
     sc = Scenario(**kw)

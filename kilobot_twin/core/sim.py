@@ -55,7 +55,10 @@ def start_poses(scenario: Scenario, seed: int, runs, robot_ids):
     s = scenario.start
     key_robots = np.zeros(N, dtype=np.int64) if s.shared else robot_ids
     keys = rng.robot_keys(seed, runs, key_robots, rng.TRIAL + 100)
-    if s.kind == "origin":
+    given = None
+    if s.kind == "poses":  # where the real robots stood (per robot id, per run if given)
+        x, y, given = s.pose_table(runs, robot_ids)
+    elif s.kind == "origin":
         x = np.zeros((R, N))
         y = np.zeros((R, N))
     elif s.kind == "uniform":
@@ -73,6 +76,8 @@ def start_poses(scenario: Scenario, seed: int, runs, robot_ids):
         theta = (2 * rng.uniform(keys, 2) - 1) * np.pi
     else:
         theta = np.full((R, N), float(s.heading_rad))
+    if given is not None:
+        theta = np.where(np.isnan(given), theta, given)
     return x, y, theta
 
 

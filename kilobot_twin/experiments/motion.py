@@ -79,25 +79,37 @@ def _circle_radius(x, y):
 
 
 def plot_straight(o: Outcome, out_dir):
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
     from ..plots import _plt, bias_cmap, save
 
     plt = _plt()
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.3), sharex=True, sharey=True)
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4.6), sharex=True, sharey=True)
     d = o.data
     cmap = bias_cmap()
     lim = np.abs(d["bias"]).max()
+    scale = o.meta.get("bias_axis_scale", 1.0)
     for ax, key, title in zip(axes, ("b_identical_noisy", "c_biased_noiseless", "d_biased_noisy"),
                               ("(b) identical robots + noise", "(c) heading bias, no noise", "(d) heading bias + noise")):
         x, y = d[f"{key}_x"], d[f"{key}_y"]
         for i in range(x.shape[0]):
             color = "k" if key.startswith("b_") else cmap(0.5 + 0.5 * d["bias"][i] / lim)
-            ax.plot(x[i], y[i], color=color, lw=0.6, alpha=0.6)
-        ax.plot(d["ideal_x"], d["ideal_y"], color="red" if key.startswith("b_") else "none", lw=2)
+            ax.plot(x[i], y[i], color=color, lw=0.6, alpha=0.6, label="noisy robots" if i == 0 and key.startswith("b_") else None)
+        if key.startswith("b_"):
+            ax.plot(d["ideal_x"], d["ideal_y"], color="red", lw=2, label="ideal robot, no noise")
+            ax.legend(loc="upper left", fontsize=8)
         ax.set_title(title)
         ax.set_aspect("equal")
-        ax.set_xlabel("x [m]")
-    axes[0].set_ylabel("y [m]")
-    return [save(fig, out_dir / "fig1_straight.png")]
+        ax.set_xlabel("x (m)")
+    axes[0].set_ylabel("y (m)")
+    sm = ScalarMappable(Normalize(-lim / scale, lim / scale), cmap)
+    cb = fig.colorbar(sm, ax=axes.tolist(), shrink=0.8, pad=0.015)
+    cb.set_label(f"heading bias, paper's axis\n(red = left, blue = right; b = {scale:g} x axis)", fontsize=8)
+    fig.suptitle(f"(1 b-d) robots told to drive straight for {o.meta['duration_s']:g} s from (-0.5, 0) m")
+    fig.savefig(out_dir / "fig1_straight.png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return [out_dir / "fig1_straight.png"]
 
 
 def run_bias_per_robot(s: Settings) -> Outcome:
@@ -147,11 +159,14 @@ def plot_bias_per_robot(o: Outcome, out_dir):
     for rank, i in enumerate(order):
         ax.scatter(np.full(est.shape[0], rank), est[:, i], color=cmap(0.5 + 0.5 * est[:, i].mean() / lim), s=14)
     ax.axhline(0, color="k", lw=0.5)
-    ax.set_xlabel("robot (sorted by mean heading bias)")
-    ax.set_ylabel("heading bias per trial (+ = right)")
+    ax.set_xlabel("robot (sorted by mean heading bias; colour: its mean, red = left, blue = right)")
+    ax.set_ylabel("heading bias b per trial\n(wheel imbalance, estimated from the track; + = right)")
+    ax.set_title("one dot per trial", fontsize=9)
     axh.hist(est.ravel(), bins=25, orientation="horizontal", color="grey")
-    axh.set_xlabel("count")
-    fig.suptitle(f"sigma (ensemble) = {o.meta['sigma_ensemble']:.4f}  >  mean sigma_i = {o.meta['mean_sigma_i']:.4f}")
+    axh.set_xlabel("trials (count)")
+    axh.set_title("ensemble", fontsize=9)
+    fig.suptitle(f"(2) heading bias per robot: sigma (ensemble) = {o.meta['sigma_ensemble']:.4f}  >  "
+                 f"mean sigma_i = {o.meta['mean_sigma_i']:.4f}", fontsize=10)
     return [save(fig, out_dir / "fig2_bias_per_robot.png")]
 
 
@@ -183,8 +198,8 @@ def plot_decalibration(o: Outcome, out_dir):
     for k in range(o.data["x"].shape[0]):
         ax.plot(o.data["x"][k], o.data["y"][k], color=colors[k], lw=1.5, label=f"trial {k}: b = {o.data['estimated'][k]:+.3f}")
     ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.legend(fontsize=7)
-    ax.set_title("Decalibration over trials (Fig. 1f)")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.legend(fontsize=7, title="b: estimated wheel imbalance", title_fontsize=7)
+    ax.set_title("(1f) one robot decalibrating over trials", fontsize=10)
     return [save(fig, out_dir / "fig1f_decalibration.png")]

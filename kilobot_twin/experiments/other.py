@@ -84,8 +84,8 @@ def plot_sensing(o: Outcome, out_dir):
     t = np.arange(d["readings"].shape[1]) * 0.1
     for i in range(d["readings"].shape[0]):
         axes[0].plot(t, d["readings"][i], lw=0.6)
-    axes[0].set_xlabel("time [s]")
-    axes[0].set_ylabel("sensor value")
+    axes[0].set_xlabel("time (s)")
+    axes[0].set_ylabel("light reading (ADC counts)")
     axes[0].set_title("(a) four saw-tooth sweeps")
     first = d["ramp"] == 0
     cmap = plt.get_cmap("viridis")
@@ -94,14 +94,15 @@ def plot_sensing(o: Outcome, out_dir):
         axes[1].plot(d["v"][first], d["readings"][i, first], lw=0.8, color=cmap((g[i] - g.min()) / np.ptp(g)),
                      label=f"robot {i}: gain {g[i]:.2f}")
     axes[1].plot(d["v"][first], np.median(d["readings"][:, first], axis=0), color="k", lw=2, label="median")
-    axes[1].set_xlabel("projected V-value (luminance)")
+    axes[1].set_xlabel("projected V-value (luminance, 0-1)")
+    axes[1].set_ylabel("light reading (ADC counts)")
     axes[1].set_title("(b) 12 robots, one ramp")
     axes[1].legend(fontsize=6, ncol=2)
     im = axes[2].imshow(d["agree"], origin="lower", aspect="auto", cmap="viridis",
                         extent=(d["agree_v"][0], d["agree_v"][-1], d["thresholds"][0], d["thresholds"][-1]))
     fig.colorbar(im, ax=axes[2], label="# robots reading above threshold")
-    axes[2].set_xlabel("projected V-value")
-    axes[2].set_ylabel("threshold")
+    axes[2].set_xlabel("projected V-value (luminance, 0-1)")
+    axes[2].set_ylabel("threshold (ADC counts)")
     axes[2].set_title("(c) agreement")
     return [save(fig, out_dir / "fig8_sensing.png")]
 
@@ -177,17 +178,18 @@ def plot_frequency(o: Outcome, out_dir):
     cmap = plt.get_cmap("flare" if "flare" in plt.colormaps() else "magma_r")
     for rank, i in enumerate(order):
         ax.scatter(np.full(sw.shape[0], rank), sw[:, i], color=cmap(rank / len(order)), s=14)
-    ax.set_xlabel("sorted robot")
-    ax.set_ylabel("no. of switches")
+    ax.set_xlabel("robot (sorted by its mean)")
+    ax.set_ylabel("LED switches per experiment (count)")
     ax.set_title("(b) switches per robot, 4 repetitions")
     ax = axes[1]
     samples = np.arange(len(d["blue_fraction"]))
-    ax.fill_between(samples, 0, d["blue_fraction"], color="blue", lw=0, step="mid")
-    ax.fill_between(samples, d["blue_fraction"], 1, color="red", lw=0, step="mid")
+    ax.fill_between(samples, 0, d["blue_fraction"], color="blue", lw=0, step="mid", label="robots showing blue")
+    ax.fill_between(samples, d["blue_fraction"], 1, color="red", lw=0, step="mid", label="robots showing red")
+    ax.legend(fontsize=7, loc="upper right", framealpha=0.9)
     ax.set_xlim(0, len(samples))
     ax.set_ylim(0, 1)
     ax.set_xlabel("sample (30 per s)")
-    ax.set_ylabel("population ratio (blue)")
+    ax.set_ylabel("population ratio (fraction of robots)")
     ax.set_title("(c) from synchrony to ~0.5")
     return [save(fig, out_dir / "fig9_frequency.png")]
 
@@ -248,13 +250,15 @@ def plot_kuramoto(o: Outcome, out_dir):
     cmap = plt.get_cmap("plasma")
     for i, k in enumerate(d["k"]):
         axes[0].plot(d["order"][i].mean(axis=0), color=cmap(i / len(d["k"])), label=f"k = {k:g}")
-    axes[0].set_xlabel("time [s]")
-    axes[0].set_ylabel("order parameter r")
-    axes[0].legend(fontsize=7, ncol=2)
+    axes[0].set_xlabel("time (s)")
+    axes[0].set_ylabel("order parameter r (0-1)")
+    axes[0].legend(fontsize=7, ncol=2, title="coupling (1/s)", title_fontsize=7)
+    axes[0].set_title("(d-f) order parameter over time, mean over runs")
     kk = np.where(d["k"] == 0, d["k"][1] / 3, d["k"])
-    axes[1].semilogx(kk, d["final_order"], "o-")
-    axes[1].axhline(0.9, color="tab:green", ls="--", lw=1)
-    axes[1].set_xlabel("coupling k [1/s] (k = 0 drawn at the left)")
-    axes[1].set_ylabel("final order parameter")
+    axes[1].semilogx(kk, d["final_order"], "o-", label="mean r over the last quarter")
+    axes[1].axhline(0.9, color="tab:green", ls="--", lw=1, label="r = 0.9: synchronous")
+    axes[1].legend(fontsize=7)
+    axes[1].set_xlabel("coupling k (1/s; k = 0 drawn at the left)")
+    axes[1].set_ylabel("final order parameter r (0-1)")
     axes[1].set_title("weak: asynchronous, medium: synchronous, strong: fails")
     return [save(fig, out_dir / "fig9_kuramoto.png")]

@@ -105,9 +105,12 @@ def phototaxis_checks(d) -> list[Check]:
     for p, target in FIG5_MEDIANS.items():
         g = P_RIGHTS.index(p)
         med = float(np.median(cost[g]))
+        # One tolerance for all three: the medians are read off the published violins (0-4 m axis,
+        # one pixel ~ 0.02 m) to about +-0.05 m, plus the Monte Carlo error of our median (its
+        # standard error over 10^4 samples is < 0.02 m) and the unknown part of the authors' set-up;
+        # +-0.15 m is what the cost table uses too. 'About 0' therefore means <= 0.15 m.
         checks.append(Check("5d", f"ensemble median, P_R = {p}", f"~{target:.2f} m", f"{med:.2f} m",
-                            abs(med - target) <= 0.15 if p != 0.5 else med <= 0.4,
-                            "+-0.15 m (P_R = 0.5: 'about 0' read as <= 0.4 m)"))
+                            abs(med - target) <= 0.15, "tolerance +-0.15 m"))
     tail = cost.max(axis=(1, 2))
     checks.append(Check("5d", "heavy upper tail up to ~3-3.9 m", "max 3-3.9 m",
                         ", ".join(f"{t:.1f}" for t in tail), bool(np.all((tail >= 2.7) & (tail <= 4.2)))))
@@ -130,46 +133,67 @@ def plot_phototaxis(o: Outcome, out_dir):
     plt = _plt()
     d = o.data
     axis, cost = d["bias_axis"], d["cost_m"]
+    scale = o.meta["bias_axis_scale"]
     paths = [cost_vs_bias(axis, cost, [f"P_R = {p}" for p in d["p_right"]], out_dir / "fig5_phototaxis.png",
-                          delta_acc=DELTA_ACC, title=f"Phototaxis cost vs heading bias ({o.meta['robots']} robots x "
+                          delta_acc=DELTA_ACC, title=f"(5) Phototaxis cost vs heading bias ({o.meta['robots']} robots x "
                           f"{o.meta['runs']} runs)",
-                          xlabel=f"heading bias, paper axis (model b = {o.meta['bias_axis_scale']:g} x axis)")]
+                          xlabel=f"heading bias on the paper's axis (+ = right; wheel imbalance b = {scale:g} x axis)")]
     # Fig. 5d: ensemble distributions.
-    fig, ax = plt.subplots(figsize=(5, 4))
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    fig, ax = plt.subplots(figsize=(5.5, 4.2))
     parts = ax.violinplot([c.ravel() for c in cost], showextrema=False)
     for pc in parts["bodies"]:
         pc.set_facecolor("pink")
-    ax.boxplot([c.ravel() for c in cost], widths=0.15, showfliers=False)
-    ax.plot(range(1, 4), [c.mean() for c in cost], "g_", markersize=30, mew=2, label="mean")
-    ax.set_xticks(range(1, 4), [f"P_R = {p}" for p in d["p_right"]])
-    ax.set_ylabel("cost [m]")
-    ax.set_title("(5d) ensemble, individuality removed")
-    ax.legend()
+    ax.boxplot([c.ravel() for c in cost], widths=0.15, showfliers=False,
+               medianprops={"color": "tab:orange", "lw": 2})
+    ax.plot(range(1, 4), [c.mean() for c in cost], "g_", markersize=30, mew=2)
+    ax.set_xticks(range(1, 4), [f"{p}" for p in d["p_right"]])
+    ax.set_xlabel("P_R (probability of turning right)")
+    ax.set_ylabel("cost: mean distance to light (m)")
+    ax.set_title("(5d) all runs and robots pooled (individuality removed)", fontsize=10)
+    ax.legend(handles=[Patch(facecolor="pink", label="distribution (violin)"),
+                       Patch(facecolor="none", edgecolor="k", label="quartiles, whiskers 1.5 IQR"),
+                       Line2D([], [], color="tab:orange", lw=2, label="median"),
+                       Line2D([], [], color="g", lw=2, label="mean")], fontsize=7, loc="upper left")
     paths.append(save(fig, out_dir / "fig5d_ensemble.png"))
     # Fig. 6: R_acc and N_acc vs delta_acc.
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for rng_max, ax in zip((4.0, 1.0), axes):
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.4))
+    total = cost.shape[1] * cost.shape[2]
+    for rng_max, ax, name in zip((4.0, 1.0), axes, ("delta_acc from 0 to 4 m", "zoom: delta_acc from 0 to 1 m")):
         deltas = np.linspace(0, rng_max, 161)
         ax2 = ax.twinx()
         for g, p in enumerate(d["p_right"]):
             w, n = r_acc_curve(axis, cost[g], deltas)
             ax.plot(deltas, w, lw=2, label=f"P_R = {p}", color=f"C{g}")
-            ax2.plot(deltas, n / 1000, lw=1.5, ls="--", color=f"C{g}")
-        ax.axvline(DELTA_ACC, color="tab:green", lw=1)
-        ax.set_xlabel("delta_acc [m]")
-        ax.set_ylabel("R_acc (solid)")
-        ax2.set_ylabel("N_acc / 1000 (dashed)")
-        ax.legend(loc="lower right")
-    fig.suptitle("(6) acceptable range and number vs threshold")
+            ax2.plot(deltas, 100.0 * n / total, lw=1.5, ls="--", color=f"C{g}")
+        ax.axvline(DELTA_ACC, color="tab:green", lw=1, ls=":")
+        ax.set_xlabel("threshold delta_acc (m)")
+        ax.set_ylabel("R_acc: width of the acceptable range\n(paper's bias axis; solid)")
+        ax2.set_ylabel(f"N_acc: acceptable experiments\n(% of {total}; dashed)")
+        ax2.set_ylim(0, 105)
+        ax.set_title(name)
+        handles = [Line2D([], [], color=f"C{g}", lw=2, label=f"P_R = {p}") for g, p in enumerate(d["p_right"])]
+        handles += [Line2D([], [], color="k", lw=2, label="R_acc"), Line2D([], [], color="k", lw=1.5, ls="--", label="N_acc"),
+                    Line2D([], [], color="tab:green", lw=1, ls=":", label=f"delta_acc = {DELTA_ACC} m (Fig. 5)")]
+        ax.legend(handles=handles, loc="lower right", fontsize=7)
+    fig.suptitle("(6) acceptable range R_acc and number N_acc vs the threshold delta_acc")
     paths.append(save(fig, out_dir / "fig6_acceptance.png"))
     # Fig. 4: example trajectories.
-    fig, axes = plt.subplots(1, 3, figsize=(12, 4), sharex=True, sharey=True)
+    fig, axes = plt.subplots(1, 3, figsize=(12, 4.6), sharex=True, sharey=True)
     cmap = bias_cmap()
     for i, (ax, b) in enumerate(zip(axes, d["example_bias_axis"])):
-        ax.plot(d["example_x"][i], d["example_y"][i], color=cmap(0.5 + 12 * b), lw=0.8)
-        ax.plot(d["example_x"][i, 0], d["example_y"][i, 0], "r+", ms=12, mew=2)
-        ax.plot(0, 0, "b*", ms=12)
-        ax.set_title(f"bias {b:+.2f} (P_R = 1, no noise)")
+        ax.plot(d["example_x"][i], d["example_y"][i], color=cmap(0.5 + 12 * b), lw=0.8, label="trajectory")
+        ax.plot(d["example_x"][i, 0], d["example_y"][i, 0], "r+", ms=12, mew=2, ls="none", label="start")
+        ax.plot(0, 0, "b*", ms=12, ls="none", label="light centre")
+        ax.set_title(f"bias {b:+.2f} on the paper's axis (b = {scale * b:+.2f})", fontsize=10)
+        ax.set_xlabel("x (m)")
         ax.set_aspect("equal")
-    paths.append(save(fig, out_dir / "fig4_trajectories.png"))
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("y (m)")
+    h, lab = axes[0].get_legend_handles_labels()
+    fig.legend(h, lab, loc="lower center", ncol=3, fontsize=9)
+    fig.suptitle("(4) noise-free trajectories, P_R = 1 (colour: heading bias, red = left, blue = right)")
+    paths.append(save(fig, out_dir / "fig4_trajectories.png", rect=(0, 0.07, 1, 1)))
     return paths

@@ -77,10 +77,11 @@ def plot_random_walk(o: Outcome, out_dir):
     fig, ax = plt.subplots(figsize=(6, 4.5))
     b = np.tile(d["bias"], d["coverage_m2"].shape[0])
     lim = np.abs(d["bias"]).max()
-    ax.scatter(b, d["coverage_m2"].ravel(), c=b, cmap=bias_cmap(), vmin=-lim, vmax=lim, s=6, alpha=0.4, lw=0)
-    ax.plot(d["bias"], d["coverage_m2"].mean(axis=0), color="k", lw=2, label="mean")
-    ax.set_xlabel(f"heading bias, paper axis (model b = {o.meta['bias_axis_scale']:g} x axis)")
-    ax.set_ylabel("covered area [m^2] (3.3 cm cells)")
-    ax.set_title(f"Random walk coverage ({o.meta['arena_m']:g} m arena, {o.meta['duration_s']:g} s)")
-    ax.legend()
+    ax.scatter(b, d["coverage_m2"].ravel(), c=b, cmap=bias_cmap(), vmin=-lim, vmax=lim, s=6, alpha=0.4, lw=0,
+               label="one run of one robot\n(colour: bias, red = left, blue = right)")
+    ax.plot(d["bias"], d["coverage_m2"].mean(axis=0), color="k", lw=2, label="mean over runs")
+    ax.set_xlabel(f"heading bias on the paper's axis (+ = right; b = {o.meta['bias_axis_scale']:g} x axis)")
+    ax.set_ylabel("covered area (m^2, 3.3 cm cells)")
+    ax.set_title(f"(7) random walk coverage ({o.meta['arena_m']:g} m arena, {o.meta['duration_s']:g} s)")
+    ax.legend(fontsize=7, loc="lower center")
     return [save(fig, out_dir / "fig7_random_walk.png")]

@@ -32,11 +32,11 @@ from rclpy.serialization import deserialize_message
 from std_msgs.msg import String, UInt64
 
 from .. import __version__
+from ..outputs import check_out_dir
 from ..errors import ConfigError
 from ..ros import params, qos
 from ..ros.bag import DEFAULT_CHUNK_BYTES, BagWriter, qos_yaml
 from ..ros.executors import run_node
-from ..ros.launcher import check_new_bag
 
 PROG = "kilobot-twin recorder"
 #: Robot data topics: what the recorder acknowledges on ``~/recorded`` (the world's back-pressure).
@@ -60,7 +60,7 @@ class RecorderNode(Node):
         compression = params.text(self, "compression", "zstd", choices=["zstd", "lz4", "none"])
         if not self.out:
             raise ConfigError("out", "empty bag path", "give e.g. -p out:=bags/run1")
-        check_new_bag(self.out, "out")  # never overwrite a bag
+        check_out_dir(self.out, "out", new=True)  # never overwrite a bag
         try:
             self.bag = BagWriter(self.out, chunk_size=chunk, compression=compression)
         except OSError as exc:

@@ -21,7 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import ConfigError
-from .scenarios import NAMED, is_scenario_file, load_swarm_traits, scenario_file
+from ..outputs import check_out_dir
+from .scenarios import NAMED, is_scenario_file, load_swarm_traits, named_scenario, scenario_file
 
 NODES = ("recorder", "analysis", "world", "swarm")
 #: Fast DDS profiles for the node processes (shared-memory queues sized for swarm bursts).
@@ -50,7 +51,7 @@ class RunReport:
     bag: Path
     mode: str
     robots: int
-    sim_s: float
+    sim_s: float | None  # simulated seconds that actually ran (None: unknown)
     wall_s: float | None = None
     real_time_factor: float | None = None
     counts: dict = field(default_factory=dict)
@@ -58,6 +59,7 @@ class RunReport:
     problems: list = field(default_factory=list)
     interrupted: bool = False
     swarm_stats: dict = field(default_factory=dict)
+    planned_s: float | None = None  # --duration
 
     @property
     def ok(self) -> bool:
@@ -75,7 +77,13 @@ class RunReport:
         return {k: (v[0], v[1]) for k, v in out.items()}
 
     def text(self) -> str:
-        lines = [f"bag: {self.bag}  ({self.mode}, {self.robots} robots, {self.sim_s:g} s simulated)"]
+        if self.sim_s is None:
+            ran = "simulated time unknown"
+        elif self.planned_s is not None and abs(self.sim_s - self.planned_s) > 1e-9:
+            ran = f"{self.sim_s:g} of {self.planned_s:g} s simulated"
+        else:
+            ran = f"{self.sim_s:g} s simulated"
+        lines = [f"bag: {self.bag}  ({self.mode}, {self.robots} robots, {ran})"]
         if self.wall_s is not None:
             lines.append(f"wall time {self.wall_s:.2f} s, real-time factor {self.real_time_factor:.2f}")
         lines.append("messages per topic:")
@@ -105,7 +113,9 @@ def _node_cmd(name: str, **params) -> list[str]:
 def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, traits: str | None, out: str):
     """Reject bad input before any process starts (one line naming the option; exit 2)."""
     if is_scenario_file(scenario):
-        scenario_file(scenario, duration, field="--scenario")
+        sc = scenario_file(scenario, duration, field="--scenario")
+        if sc.start.kind == "poses":  # every robot of the run has its start pose (run 0)
+            sc.start.pose_table([0], load_swarm_traits(traits, robots, seed, field="--traits").ids, scenario)
     elif scenario not in NAMED:
         raise ConfigError("--scenario", f"unknown scenario {scenario!r}",
                           f"use one of {', '.join(NAMED)} or a scenario YAML file")
@@ -119,17 +129,7 @@ def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, 
         raise ConfigError("--seed", f"must be >= 0, got {seed}", "give a non-negative integer")
     if traits:
         load_swarm_traits(traits, robots, seed, field="--traits")
-    check_new_bag(out, "--out")
-
-
-def check_new_bag(out: str | Path, field: str) -> None:
-    """Refuse a bag path that would overwrite something: a file, or a folder that is not empty."""
-    path = Path(out)
-    if path.is_file():
-        raise ConfigError(field, f"{out} is a file", "give a new folder name for the bag, e.g. bags/run1")
-    if path.is_dir() and any(path.iterdir()):
-        what = "holds a bag" if (path / "metadata.yaml").exists() or any(path.glob("*.mcap")) else "is not empty"
-        raise ConfigError(field, f"{out} already {what}", "choose a new bag name or delete the old one")
+    check_out_dir(out, field="--out", new=True)  # not a file, not under a file, never over a bag
 
 
 def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 20.0, seed: int = 0,
@@ -158,7 +158,8 @@ def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 2
                            wait_for_nodes="recorder", stats_file=str(world_stats)),
         "swarm": _node_cmd("swarm", robots=robots, seed=seed, traits_file=traits or "", stats_file=str(swarm_stats)),
     }
-    report = RunReport(bag=bag, mode=mode, robots=robots, sim_s=float(duration))
+    report = RunReport(bag=bag, mode=mode, robots=robots, sim_s=None, planned_s=float(duration))
+    dt_s = (scenario_file(scenario) if is_scenario_file(scenario) else named_scenario(scenario)).dt_s
     children: dict[str, Child] = {}
     stop_request = {"signal": None}
 
@@ -217,7 +218,7 @@ def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 2
     rec = children.get("recorder")
     if rec is not None and rec.returncode not in (0, None) and rec.stopped_by_us and rec.returncode < 0:
         report.problems.append(f"recorder did not stop cleanly (code {rec.returncode}); try `kilobot-twin bag repair {bag}`")
-    _fill_report(report, swarm_stats, world_stats)
+    _fill_report(report, swarm_stats, world_stats, dt_s)
     return report
 
 
@@ -239,7 +240,7 @@ def _stop(c: Child, timeout_s: float) -> None:
     c.returncode = c.proc.poll()
 
 
-def _fill_report(report: RunReport, swarm_stats: Path, world_stats: Path) -> None:
+def _fill_report(report: RunReport, swarm_stats: Path, world_stats: Path, dt_s: float) -> None:
     from .bag import summary_counts
 
     try:
@@ -250,8 +251,12 @@ def _fill_report(report: RunReport, swarm_stats: Path, world_stats: Path) -> Non
         ws = json.loads(world_stats.read_text())
         report.wall_s = ws["wall_s"]
         report.real_time_factor = ws["real_time_factor"]
+        report.sim_s = float(ws["sim_s"])
     if swarm_stats.is_file():
         ss = json.loads(swarm_stats.read_text())
         report.swarm_stats = ss
         report.published = ss.get("published_per_topic") or {t: ss["samples_published"]
                                                              for t in ss.get("topics_per_robot", [])}
+        samples = max((ss.get("per_robot_samples") or {}).values(), default=0)
+        if report.sim_s is None and samples:  # stopped early: what the robots stepped (sample 0 is t = 0)
+            report.sim_s = (samples - 1) * dt_s

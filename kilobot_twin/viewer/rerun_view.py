@@ -3,23 +3,26 @@
 Everything time-varying is sent with the columnar API (``rr.send_columns``): one call per
 entity for the whole recording instead of one ``rr.log`` per robot per step.
 
-Entities (timeline ``time``, a duration in s):
+Entities (timeline ``time``, a duration in s), the arena in metres (x right, y up, seen from
+above in a 3-D view with a 0.5 m grid; hovering shows arena coordinates in m):
 
-- ``arena/light_field`` (static Image): the light field, dark (low) to yellow (high);
-- ``arena/light_center`` (static Points2D): the light centre;
-- ``arena/trajectories`` (static LineStrips2D): each robot's whole path, coloured by its
+- ``arena`` (static ViewCoordinates RFU): x right, y forward (up on screen), z towards the eye;
+- ``arena/light_field`` (static Mesh3D): the light field as a texture over its extent in m,
+  dark (low) to yellow (high);
+- ``arena/bounds`` (static LineStrips3D): the arena's edge;
+- ``arena/light_center`` (static Points3D): the light centre;
+- ``arena/trajectories`` (static LineStrips3D): each robot's whole path, coloured by its
   heading bias on the paper's map (red = left / negative, blue = right / positive), split at
   tracking gaps;
-- ``arena/robots`` (Points2D per step): every robot in its current LED colour (grey: unknown);
-- ``arena/headings`` (Arrows2D per step): heading arrows;
+- ``arena/robots`` (Points3D per step): every robot (radius 1.7 cm, a Kilobot's body) in its
+  current LED colour (grey: unknown);
+- ``arena/headings`` (Arrows3D per step): heading arrows;
 - ``light/kilobot_<id>`` (Scalars): each robot's raw light reading;
 - ``metrics/<name>`` (Scalars): red / blue LED fraction, order parameter (blink), mean
   distance to the light, computed from the robots' arrays; ``metrics/recorded/<name>``: what
   the analysis node recorded in the bag;
-- ``traits`` (static TextDocument): a markdown table of every robot's traits.
-
-The 2-D view is in the light-field image's pixel frame (column = x, row = -y: up on screen
-is +y); ``arena`` holds the scale (``px_per_m``) in the text of ``arena/info``.
+- ``traits`` (static TextDocument): a markdown table of every robot's traits; heading biases in
+  it are the wheel imbalance b (the model's scale, as in traits files), never the paper's axis.
 """
 
 from __future__ import annotations
@@ -35,45 +38,50 @@ from .swarm_data import SwarmRecording, bias_colours, led_colours
 
 APP_ID = "kilobot_twin"
 TIMELINE = "time"
-DEFAULT_PX_PER_M = 100.0  # when the recording has no light field (measured data): 1 px = 1 cm
 
 
-def blueprint() -> rrb.Blueprint:
+def blueprint(rec: SwarmRecording | None = None) -> rrb.Blueprint:
+    """Arena (3-D view from above, metres) next to light readings, swarm metrics and traits."""
+    xmin, xmax, ymin, ymax = _extent(rec) if rec is not None else (-2.0, 2.0, -2.0, 2.0)
+    cx, cy = 0.5 * (xmin + xmax), 0.5 * (ymin + ymax)
+    height = 1.25 * max(xmax - xmin, ymax - ymin)
+    arena = rrb.Spatial3DView(
+        origin="arena", name="arena (m; x right, y up)",
+        line_grid=rrb.LineGrid3D(visible=True, spacing=0.5, plane=rr.components.Plane3D.XY, stroke_width=1.0,
+                                 color=[110, 110, 110, 120]),
+        eye_controls=rrb.EyeControls3D(position=(cx, cy, height), look_target=(cx, cy, 0.0), eye_up=(0.0, 1.0, 0.0)),
+    )
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(origin="arena", name="arena"),
+            arena,
             rrb.Vertical(
-                rrb.TimeSeriesView(origin="light", name="light readings (ADC counts)"),
-                rrb.TimeSeriesView(origin="metrics", name="swarm metrics"),
+                rrb.TimeSeriesView(origin="light", name="light readings (ADC counts) vs time (s)"),
+                rrb.TimeSeriesView(origin="metrics", name="swarm metrics vs time (s)"),
                 rrb.TextDocumentView(origin="traits", name="traits"),
             ),
             column_shares=[3, 2],
         ),
-        collapse_panels=False,
+        collapse_panels=True,
     )
 
 
-class _Frame:
-    """Arena metres -> view pixels (x right, y up on screen)."""
+def _extent(rec: SwarmRecording) -> tuple[float, float, float, float]:
+    """(xmin, xmax, ymin, ymax) in m: the light field's extent, else the tracks (+ light centre) with a margin."""
+    if rec.light_field is not None and rec.field_extent is not None:
+        return tuple(float(v) for v in rec.field_extent)
+    ok = np.isfinite(rec.x) & np.isfinite(rec.y)
+    pad = 0.05
+    xmin, xmax = (float(rec.x[ok].min()) - pad, float(rec.x[ok].max()) + pad) if ok.any() else (-1.0, 1.0)
+    ymin, ymax = (float(rec.y[ok].min()) - pad, float(rec.y[ok].max()) + pad) if ok.any() else (-1.0, 1.0)
+    if rec.light_center is not None:
+        xmin, xmax = min(xmin, rec.light_center[0] - pad), max(xmax, rec.light_center[0] + pad)
+        ymin, ymax = min(ymin, rec.light_center[1] - pad), max(ymax, rec.light_center[1] + pad)
+    return xmin, xmax, ymin, ymax
 
-    def __init__(self, rec: SwarmRecording):
-        if rec.light_field is not None and rec.field_extent is not None:
-            xmin, xmax, ymin, ymax = rec.field_extent
-            self.px_per_m = rec.light_field.shape[1] / (xmax - xmin)
-        else:
-            ok = np.isfinite(rec.x) & np.isfinite(rec.y)
-            pad = 0.05
-            xmin, xmax = (float(rec.x[ok].min()) - pad, float(rec.x[ok].max()) + pad) if ok.any() else (-1, 1)
-            ymin, ymax = (float(rec.y[ok].min()) - pad, float(rec.y[ok].max()) + pad) if ok.any() else (-1, 1)
-            if rec.light_center is not None:
-                xmin, xmax = min(xmin, rec.light_center[0] - pad), max(xmax, rec.light_center[0] + pad)
-                ymin, ymax = min(ymin, rec.light_center[1] - pad), max(ymax, rec.light_center[1] + pad)
-            self.px_per_m = DEFAULT_PX_PER_M
-        self.xmin, self.ymax = xmin, ymax
 
-    def __call__(self, x, y) -> np.ndarray:
-        return np.stack([(np.asarray(x) - self.xmin) * self.px_per_m, (self.ymax - np.asarray(y)) * self.px_per_m],
-                        axis=-1)
+def _xyz(x, y, z: float = 0.0) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float64)
+    return np.stack([x, np.asarray(y, dtype=np.float64), np.full(x.shape, z)], axis=-1)
 
 
 def _field_rgb(field: np.ndarray) -> np.ndarray:
@@ -87,19 +95,23 @@ def _field_rgb(field: np.ndarray) -> np.ndarray:
 def log_recording(rec: SwarmRecording, stream: rr.RecordingStream, arrow_m: float = 0.03) -> None:
     """Log every entity of ``rec`` into ``stream`` (static layers with ``log``, time series with ``send_columns``)."""
     N, T = rec.x.shape
-    frame = _Frame(rec)
-    px = frame.px_per_m
     times = np.asarray(rec.t_s, dtype=np.float64)
     bias = rec.bias_for_colour()
     bcol = bias_colours(bias)
+    xmin, xmax, ymin, ymax = _extent(rec)
 
-    # --- static layers -------------------------------------------------------------------
+    # --- static layers (metres; the field just below the tracks, the robots just above) ----
+    stream.log("arena", rr.ViewCoordinates.RFU, static=True)
     if rec.light_field is not None:
-        stream.log("arena/light_field", rr.Image(_field_rgb(rec.light_field), draw_order=-10.0), static=True)
+        corners = _xyz([xmin, xmax, xmax, xmin], [ymax, ymax, ymin, ymin], -0.002)
+        stream.log("arena/light_field", rr.Mesh3D(vertex_positions=corners, triangle_indices=[[0, 1, 2], [0, 2, 3]],
+                                                  vertex_texcoords=[[0, 0], [1, 0], [1, 1], [0, 1]],  # row 0 = +y
+                                                  albedo_texture=_field_rgb(rec.light_field)), static=True)
+    stream.log("arena/bounds", rr.LineStrips3D([_xyz([xmin, xmax, xmax, xmin, xmin], [ymin, ymin, ymax, ymax, ymin])],
+                                               colors=[(200, 200, 200)], radii=[rr.Radius.ui_points(1.0)]), static=True)
     if rec.light_center is not None:
-        c = frame(*rec.light_center)
-        stream.log("arena/light_center", rr.Points2D([c], radii=[0.03 * px], colors=[(255, 200, 0)], labels=["light"],
-                                                     draw_order=5.0), static=True)
+        stream.log("arena/light_center", rr.Points3D(_xyz([rec.light_center[0]], [rec.light_center[1]], 0.003),
+                                                     radii=[0.03], colors=[(255, 200, 0)], labels=["light"]), static=True)
     strips, strip_cols, strip_labels = [], [], []
     for i in range(N):
         ok = np.isfinite(rec.x[i]) & np.isfinite(rec.y[i])
@@ -108,33 +120,34 @@ def log_recording(rec: SwarmRecording, stream: rr.RecordingStream, arrow_m: floa
         # Contiguous runs of tracked samples: a gap ends a strip (nothing interpolated).
         edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]])))
         for a, b in zip(edges[::2], edges[1::2]):
-            strips.append(frame(rec.x[i, a:b], rec.y[i, a:b]))
+            strips.append(_xyz(rec.x[i, a:b], rec.y[i, a:b]))
             strip_cols.append(bcol[i])
             strip_labels.append(f"{rec.robot_ids[i]}: b={bias[i]:+.4f}" if np.isfinite(bias[i]) else str(rec.robot_ids[i]))
     if strips:
-        stream.log("arena/trajectories", rr.LineStrips2D(strips, colors=strip_cols, radii=[0.002 * px] * len(strips),
-                                                         labels=strip_labels, show_labels=False, draw_order=1.0),
-                   static=True)
+        stream.log("arena/trajectories", rr.LineStrips3D(strips, colors=strip_cols,
+                                                         radii=[rr.Radius.ui_points(1.5)] * len(strips),
+                                                         labels=strip_labels, show_labels=False), static=True)
     stream.log("arena/info", rr.TextDocument(
-        f"View frame: 1 px = {1 / px:.4g} m; x right, y up on screen. Trajectory colour = heading bias "
-        f"(red = left / negative, blue = right / positive). Points = robots in their LED colour."), static=True)
+        f"Arena in metres: x right, y up; {xmax - xmin:.2f} m x {ymax - ymin:.2f} m, grid 0.5 m. Trajectory colour = "
+        "heading bias b, the wheel imbalance (red = left / negative, blue = right / positive). Points = robots "
+        "(radius 1.7 cm) in their LED colour."), static=True)
     stream.log("traits", rr.TextDocument(_traits_markdown(rec, bias), media_type=rr.MediaType.MARKDOWN), static=True)
 
     # --- robots over time: one row per step, one instance per tracked robot -------------
     ok = np.isfinite(rec.x) & np.isfinite(rec.y)          # (N, T)
     lengths = ok.sum(axis=0)                              # robots per step
     okT = ok.T                                            # (T, N): row-major order = step, then robot
-    xy = frame(rec.x.T[okT], rec.y.T[okT])
+    xyz = _xyz(rec.x.T[okT], rec.y.T[okT], 0.004)
     th = np.where(np.isfinite(rec.theta), rec.theta, 0.0).T[okT]
     cols = led_colours(rec.led.T[okT])
     ids = np.broadcast_to(rec.robot_ids[None, :], (T, N))[okT]
     index = [rr.TimeColumn(TIMELINE, duration=times)]
-    stream.send_columns("arena/robots", indexes=index, columns=rr.Points2D.columns(
-        positions=xy, colors=cols, radii=np.full(len(xy), 0.017 * px, dtype=np.float32),
+    stream.send_columns("arena/robots", indexes=index, columns=rr.Points3D.columns(
+        positions=xyz, colors=cols, radii=np.full(len(xyz), 0.017, dtype=np.float32),
         class_ids=ids.astype(np.uint16)).partition(lengths))
-    stream.send_columns("arena/headings", indexes=index, columns=rr.Arrows2D.columns(
-        origins=xy, vectors=np.stack([np.cos(th), -np.sin(th)], axis=-1) * (arrow_m * px),
-        colors=np.repeat(np.array([[240, 240, 240, 255]], dtype=np.uint8), len(xy), axis=0)).partition(lengths))
+    stream.send_columns("arena/headings", indexes=index, columns=rr.Arrows3D.columns(
+        origins=xyz, vectors=np.stack([np.cos(th), np.sin(th), np.zeros_like(th)], axis=-1) * arrow_m,
+        colors=np.repeat(np.array([[240, 240, 240, 255]], dtype=np.uint8), len(xyz), axis=0)).partition(lengths))
 
     # --- time series ---------------------------------------------------------------------
     for i, rid in enumerate(rec.robot_ids):
@@ -172,7 +185,10 @@ def _traits_markdown(rec: SwarmRecording, bias: np.ndarray) -> str:
     head = f"# {rec.name}: {rec.n_robots} robots, {rec.n_steps} samples\n\n"
     if not keys:
         head += "No trait records; heading bias estimated from motion.\n\n"
-    cols = ["robot", "bias (colour)"] + keys
+    head += ("Heading bias is the wheel imbalance b (paper Eq. 7, + = curves right), the model's scale; "
+             "the paper preset reads the paper's axis as b / 10.\n\n")
+    names = {"heading_bias": "heading_bias b (wheel imbalance)"}
+    cols = ["robot", "b for the colour (wheel imbalance)"] + [names.get(k, k) for k in keys]
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     for rid, b, tr in rows:
         lines.append("| " + " | ".join([str(rid), f"{b:+.4f}"] + [f"{tr[k]:.6g}" if k in tr else "" for k in keys]) + " |")
@@ -185,7 +201,7 @@ def write_rrd(rec: SwarmRecording, out: str | Path, spawn: bool = False) -> dict
     out.parent.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     stream = rr.RecordingStream(APP_ID)
-    bp = blueprint()
+    bp = blueprint(rec)
     if spawn:
         # Start a viewer, then stream to it and to the file at once.
         stream.spawn(connect=False)

@@ -63,29 +63,31 @@ def test_rrd_holds_every_entity_with_the_right_rows_and_values(tmp_path):
               "/metrics/led_blue_fraction", "/metrics/mean_distance_to_light_m", "/traits"):
         assert e in ents, (e, sorted(ents))
     # One row per step; robot 2 is missing in the 10 gap steps.
-    positions = column(ents["/arena/robots"], "Points2D:positions")
+    positions = column(ents["/arena/robots"], "Points3D:positions")
     assert len(positions) == 50
     assert [len(p) for p in positions[10:20]] == [2] * 10 and len(positions[0]) == 3
-    # Pixel frame: 128 px over 4 m, origin at the top-left corner (x = -2, y = +2).
-    px = 128 / 4.0
-    np.testing.assert_allclose(positions[5][1], [(rec.x[1, 5] + 2) * px, (2 - rec.y[1, 5]) * px], rtol=1e-6)
+    # The arena in metres: x, y as recorded (float32 in the file), robots just above the floor.
+    np.testing.assert_allclose(positions[5][1][:2], [rec.x[1, 5], rec.y[1, 5]], rtol=1e-6)
+    # The light field covers its extent in metres, row 0 of the image at +y.
+    corners = np.array(column(ents["/arena/light_field"], "Mesh3D:vertex_positions")[0])
+    assert corners[:, 0].min() == rec.field_extent[0] and corners[:, 1].max() == rec.field_extent[3]
     # LED colours per robot: red, blue.
-    colours = column(ents["/arena/robots"], "Points2D:colors")
+    colours = column(ents["/arena/robots"], "Points3D:colors")
     assert colours[0][0] == 0xE61414FF and colours[0][1] == 0x143CF0FF
     # Readings: gaps are left out, values kept.
     r9 = [v[0] for v in column(ents["/light/kilobot_9"], "Scalars:scalars")]
     assert len(r9) == 40 and r9[0] == pytest.approx(102.0)
     # Trajectories: robot 2 is split at its gap -> 4 strips; colours follow the bias map.
-    strips = column(ents["/arena/trajectories"], "LineStrips2D:strips")[0]
+    strips = column(ents["/arena/trajectories"], "LineStrips3D:strips")[0]
     assert [len(s) for s in strips] == [50, 50, 10, 30]
-    strip_cols = column(ents["/arena/trajectories"], "LineStrips2D:colors")[0]
+    strip_cols = column(ents["/arena/trajectories"], "LineStrips3D:colors")[0]
     r, g, b = bias_colours(rec.heading_bias)[0]
     assert strip_cols[0] == (int(r) << 24) | (int(g) << 16) | (int(b) << 8) | 255
     assert r > b  # negative bias (left) is red
     red = [v[0] for v in column(ents["/metrics/led_red_fraction"], "Scalars:scalars")]
     assert red[0] == pytest.approx(2 / 3) and len(red) == 50
     text = column(ents["/traits"], "TextDocument:text")[0][0]
-    assert "| 4 | -0.0200" in text
+    assert "| 4 | -0.0200" in text and "heading_bias b (wheel imbalance)" in text
     # The blueprint travels with the recording.
     assert len(rr_chunk.RrdReader(str(out)).blueprints()) == 1
 
@@ -106,7 +108,7 @@ def test_view_of_batch_results_npz(tmp_path):
     assert main(["simulate", str(cfg), "--out", str(tmp_path / "r.npz"), "--workers", "1", "--no-progress"]) == 0
     assert main(["view", str(tmp_path / "r.npz"), "--run", "1"]) == 0
     ents = chunks_by_entity(tmp_path / "r.rrd")
-    assert len(column(ents["/arena/robots"], "Points2D:positions")) == 51
+    assert len(column(ents["/arena/robots"], "Points3D:positions")) == 51
     assert sum(1 for e in ents if e.startswith("/light/kilobot_")) == 4
 
 
