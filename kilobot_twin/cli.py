@@ -95,11 +95,11 @@ def demo(out: str = "out/demo", quick: bool = False, workers: int | None = None,
 
 
 def run(scenario: str = "phototaxis", robots: int = 10, duration: float = 20.0, seed: int = 0, mode: str = "lockstep",
-        traits: str | None = None, out: str = "bags/run", timeout: float | None = None, echo=None):
-    """Start world, swarm, analysis and recorder as processes; returns the run report (bag finalised)."""
+        traits: str | None = None, out: str = "bags/run", timeout: float | None = None, echo=None, swarms: int = 1):
+    """Start world, swarm(s), analysis and recorder as processes; returns the run report (bag finalised)."""
     from .ros.launcher import run_twin
 
-    return run_twin(scenario, robots, duration, seed, mode, traits, out, timeout_s=timeout, echo=echo)
+    return run_twin(scenario, robots, duration, seed, mode, traits, out, timeout_s=timeout, echo=echo, swarms=swarms)
 
 
 def bag_repair(path: str) -> dict:
@@ -229,6 +229,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--traits", help="traits YAML (robots: or population:); default: a drawn population")
     r.add_argument("--out", default="bags/run", help="bag directory bags/NAME")
     r.add_argument("--timeout", type=float, help="give up if the world is not done after this many wall seconds")
+    r.add_argument("--swarms", type=_positive_int, default=1,
+                   help="swarm processes, each owning a block of the robot ids (uncoupled scenarios)")
 
     b = sub.add_parser("bag", help="inspect or repair recorded bags")
     bsub = b.add_subparsers(dest="bag_verb", required=True, metavar="ACTION", parser_class=_Parser)
@@ -316,7 +318,7 @@ def main(argv=None) -> int:
                 print(f"{args.path}: {check_traits(args.path)} robot(s), valid")
         elif args.verb == "run":
             rep = run(args.scenario, args.robots, args.duration, args.seed, args.mode, args.traits, args.out,
-                      args.timeout, echo=lambda line: print(line, file=sys.stderr))
+                      args.timeout, echo=lambda line: print(line, file=sys.stderr), swarms=args.swarms)
             print(rep.text())
             if rep.interrupted:
                 return 130

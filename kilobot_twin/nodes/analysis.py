@@ -20,7 +20,8 @@ robots at one stamp: the metrics are exact for that step; the swarm's transient-
 ``members`` says which robots it covers), every other robot from its own ``pose``, ``led`` and
 ``clock`` topics (a step is evaluated once every robot's pose has reached it; ``led`` has no
 stamp, so it is the latest one received). The scenario (light centre, arena, blink period)
-comes from the world's transient-local document.
+comes from the world's transient-local document, and so does the number of robots of the run:
+nothing is published before every one of them has been heard from (several swarm processes).
 """
 
 from __future__ import annotations
@@ -73,11 +74,11 @@ class AnalysisNode(Node):
         self.y: dict[int, float] = {}
         self.led: dict[int, int] = {}
         self.ticks: dict[int, float] = {}
-        self.stamp: dict[int, int] = {}  # robot -> stamp (ns) of its newest pose
-        self.next_ns = 0  # the next evaluation is due once every robot has reached this time
+        self.due: dict[int, int] = {}  # robot -> the next evaluation time (ns) it has not reached
+        self.snaps: dict[int, dict] = {}  # evaluation time -> robot -> its state then
+        self.expected = 0  # robots of the run (world document): evaluate once all are heard from
         self.cells: set[int] = set()
-        self._visited_x: list[float] = []
-        self._visited_y: list[float] = []
+        self._visited: list[tuple] = []  # (stamp, xs, ys) not yet counted in the coverage cells
         self.subscribed: set[str] = set()
         self.covered: set[int] = set()  # robots read from a swarm's cloud
         self._robot_subs: dict[int, list] = {}
@@ -89,7 +90,9 @@ class AnalysisNode(Node):
         self.create_timer(0.25, self._discover)
 
     def _on_world(self, msg: String) -> None:
-        self.scenario = scenario_from_document(parse_world_document(msg.data))
+        doc = parse_world_document(msg.data)
+        self.scenario = scenario_from_document(doc)
+        self.expected = int(doc.get("robots", 0))
 
     def _discover(self) -> None:
         for topic, _ in self.get_topic_names_and_types():
@@ -136,38 +139,58 @@ class AnalysisNode(Node):
         self.y.update(zip(ids, y))
         self.led.update(zip(ids, pts["led"].tolist()))
         self.ticks.update(zip(ids, pts["ticks"].tolist()))
-        self.stamp.update(dict.fromkeys(ids, stamp))
-        self._visited_x += x
-        self._visited_y += y
+        self._visited.append((stamp, x, y))
+        for rid in ids:
+            self._sample(rid, stamp)
         self._maybe_publish()
 
     def _on_pose(self, rid: int, data: bytes) -> None:
         x, y = convert.pose_xy_from_cdr(data)
+        stamp = convert.stamp_ns_from_cdr(data)
         self.x[rid], self.y[rid] = x, y
-        self.stamp[rid] = convert.stamp_ns_from_cdr(data)
-        self._visited_x.append(x)  # coverage cells are computed in bulk at publication
-        self._visited_y.append(y)
+        self._visited.append((stamp, [x], [y]))  # coverage cells are computed in bulk at publication
+        self._sample(rid, stamp)
         self._maybe_publish()
 
-    def _maybe_publish(self) -> None:
-        """Publish once every robot heard from has reached the next evaluation time."""
-        t_ns = min(self.stamp.values())
-        if t_ns >= self.next_ns:
-            self.publish_metrics(t_ns)
-            self.next_ns = (t_ns // self.period_ns + 1) * self.period_ns if self.period_ns else t_ns + 1
+    def _sample(self, rid: int, stamp: int) -> None:
+        """Keep robot ``rid``'s state as of ``stamp`` if that is its first sample at or after the
+        next evaluation time it owes (robots of several swarm processes are steps apart)."""
+        due = self.due.get(rid, 0)
+        if stamp >= due:
+            self.snaps.setdefault(due, {})[rid] = (stamp, self.x[rid], self.y[rid], self.led.get(rid),
+                                                   self.ticks.get(rid))
+            self.due[rid] = (stamp // self.period_ns + 1) * self.period_ns if self.period_ns else stamp + 1
 
-    def publish_metrics(self, stamp_ns: int) -> dict:
-        if self._visited_x:
-            cells = self.scenario.arena.cell_index(np.array(self._visited_x), np.array(self._visited_y))
-            self.cells.update(np.unique(cells).tolist())
-            self._visited_x, self._visited_y = [], []
-        ids = sorted(self.x)
-        m = swarm_metrics([self.x[i] for i in ids], [self.y[i] for i in ids], [self.led[i] for i in ids if i in self.led],
-                          [self.ticks[i] for i in ids if i in self.ticks], self.scenario, len(self.cells))
+    def _maybe_publish(self) -> None:
+        """Publish each evaluation time once every robot of the run (and every one heard from) has
+        reached it, with each robot's state at that time."""
+        while self.snaps:
+            due = min(self.snaps)
+            snap = self.snaps[due]
+            if len(snap) < max(self.expected, len(self.due)):
+                return
+            del self.snaps[due]
+            self.publish_metrics(max(v[0] for v in snap.values()), snap)
+
+    def publish_metrics(self, stamp_ns: int, snap: dict | None = None) -> dict:
+        """Publish the metrics of ``snap`` (robot -> (stamp, x, y, led, ticks)), by default the
+        latest state of every robot; coverage counts positions up to ``stamp_ns``."""
+        if snap is None:
+            snap = {i: (stamp_ns, self.x[i], self.y[i], self.led.get(i), self.ticks.get(i)) for i in self.x}
+        later = [v for v in self._visited if v[0] > stamp_ns]
+        now = [v for v in self._visited if v[0] <= stamp_ns]
+        if now:
+            xs = np.concatenate([v[1] for v in now])
+            ys = np.concatenate([v[2] for v in now])
+            self.cells.update(np.unique(self.scenario.arena.cell_index(xs, ys)).tolist())
+        self._visited = later
+        rows = [snap[i] for i in sorted(snap)]
+        m = swarm_metrics([r[1] for r in rows], [r[2] for r in rows], [r[3] for r in rows if r[3] is not None],
+                          [r[4] for r in rows if r[4] is not None], self.scenario, len(self.cells))
         self.pub_time.publish(Float64(data=stamp_ns / convert.NS_PER_S))
         for k, v in m.items():
             self.pubs[k].publish(Float64(data=v))
-        self.pub_robots.publish(UInt32(data=len(ids)))
+        self.pub_robots.publish(UInt32(data=len(rows)))
         self.latest = m
         return m
 

@@ -24,7 +24,6 @@ from ..errors import ConfigError
 from ..outputs import check_out_dir
 from .scenarios import NAMED, is_scenario_file, load_swarm_traits, named_scenario, scenario_file
 
-NODES = ("recorder", "analysis", "world", "swarm")
 #: Fast DDS profiles for the node processes (shared-memory queues sized for swarm bursts).
 FASTDDS_PROFILES = Path(__file__).with_name("fastdds.xml")
 
@@ -110,8 +109,10 @@ def _node_cmd(name: str, **params) -> list[str]:
     return cmd
 
 
-def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, traits: str | None, out: str):
+def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, traits: str | None, out: str,
+             swarms: int = 1):
     """Reject bad input before any process starts (one line naming the option; exit 2)."""
+    sc = None
     if is_scenario_file(scenario):
         sc = scenario_file(scenario, duration, field="--scenario")
         if sc.start.kind == "poses":  # every robot of the run has its start pose (run 0)
@@ -123,6 +124,12 @@ def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, 
         raise ConfigError("--mode", f"unknown mode {mode!r}", "use lockstep or realtime")
     if robots < 1:
         raise ConfigError("--robots", f"must be >= 1, got {robots}", "give the number of robots")
+    if not 1 <= swarms <= robots:
+        raise ConfigError("--swarms", f"must be between 1 and --robots ({robots}), got {swarms}",
+                          "give the number of swarm processes, e.g. --swarms 3")
+    if swarms > 1 and (sc or named_scenario(scenario)).coupling_per_s > 0:
+        raise ConfigError("--swarms", "Kuramoto coupling acts within one swarm process only",
+                          "run a coupled scenario (sync) with --swarms 1")
     if not duration > 0:
         raise ConfigError("--duration", f"must be positive, got {duration}", "give simulated seconds")
     if seed < 0:
@@ -134,12 +141,12 @@ def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, 
 
 def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 20.0, seed: int = 0,
              mode: str = "lockstep", traits: str | None = None, out: str = "bags/run", timeout_s: float | None = None,
-             echo=None, install_signal_handlers: bool = True) -> RunReport:
+             echo=None, install_signal_handlers: bool = True, swarms: int = 1) -> RunReport:
     """Run the twin as separate processes; returns a :class:`RunReport` (bag finalised in every case).
 
     ``echo(str)`` receives progress lines.
     """
-    validate(scenario, robots, duration, seed, mode, traits, out)
+    validate(scenario, robots, duration, seed, mode, traits, out, swarms)
     echo = echo or (lambda s: None)
     bag = Path(out)
     logs = bag.parent / f"{bag.name}.logs"
@@ -148,16 +155,21 @@ def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 2
         timeout_s = 60.0 + (duration * 1.5 if mode == "realtime" else duration * 2.0)
     world_scenario = ({"scenario_file": str(Path(scenario).resolve())} if is_scenario_file(scenario)
                       else {"scenario": scenario})
-    swarm_stats, world_stats = logs / "swarm_stats.json", logs / "world_stats.json"
-    for f in (swarm_stats, world_stats):
+    swarm_names = ["swarm"] if swarms == 1 else [f"swarm_{k}" for k in range(swarms)]
+    swarm_stats = [logs / f"{name}_stats.json" for name in swarm_names]
+    world_stats = logs / "world_stats.json"
+    for f in (*swarm_stats, world_stats):
         f.unlink(missing_ok=True)
     cmds = {
         "recorder": _node_cmd("recorder", out=str(bag)),
         "analysis": _node_cmd("analysis"),
         "world": _node_cmd("world", **world_scenario, duration_s=float(duration), seed=seed, robots=robots, mode=mode,
                            wait_for_nodes="recorder", stats_file=str(world_stats)),
-        "swarm": _node_cmd("swarm", robots=robots, seed=seed, traits_file=traits or "", stats_file=str(swarm_stats)),
     }
+    for k, (name, stats) in enumerate(zip(swarm_names, swarm_stats)):
+        # Swarm k of K owns the k-th block of robot ids; its own node name keeps its topics apart.
+        cmds[name] = _node_cmd("swarm", robots=robots, seed=seed, traits_file=traits or "", stats_file=str(stats),
+                               slices=swarms, slice_index=k) + ["-r", f"__node:={name}"]
     report = RunReport(bag=bag, mode=mode, robots=robots, sim_s=None, planned_s=float(duration))
     dt_s = (scenario_file(scenario) if is_scenario_file(scenario) else named_scenario(scenario)).dt_s
     children: dict[str, Child] = {}
@@ -173,7 +185,7 @@ def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 2
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     env.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(FASTDDS_PROFILES))
     try:
-        for name in NODES:
+        for name in cmds:  # recorder first: the world holds the start until it subscribes
             log = logs / f"{name}.log"
             fh = open(log, "w")
             # Own process group: a Ctrl-C in the terminal reaches `run` only, which then stops
@@ -210,7 +222,7 @@ def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 2
             time.sleep(0.05)
         time.sleep(0.3)  # let the last messages reach the recorder
     finally:
-        for name in ("world", "swarm", "analysis", "recorder"):
+        for name in ("world", *swarm_names, "analysis", "recorder"):
             if name in children:
                 _stop(children[name], 20.0 if name == "recorder" else 10.0)
         for s, h in old.items():
@@ -240,7 +252,7 @@ def _stop(c: Child, timeout_s: float) -> None:
     c.returncode = c.proc.poll()
 
 
-def _fill_report(report: RunReport, swarm_stats: Path, world_stats: Path, dt_s: float) -> None:
+def _fill_report(report: RunReport, swarm_stats: list[Path], world_stats: Path, dt_s: float) -> None:
     from .bag import summary_counts
 
     try:
@@ -252,11 +264,26 @@ def _fill_report(report: RunReport, swarm_stats: Path, world_stats: Path, dt_s: 
         report.wall_s = ws["wall_s"]
         report.real_time_factor = ws["real_time_factor"]
         report.sim_s = float(ws["sim_s"])
-    if swarm_stats.is_file():
-        ss = json.loads(swarm_stats.read_text())
+    parts = [json.loads(f.read_text()) for f in swarm_stats if f.is_file()]
+    if parts:
+        ss = merge_swarm_stats(parts)
         report.swarm_stats = ss
-        report.published = ss.get("published_per_topic") or {t: ss["samples_published"]
-                                                             for t in ss.get("topics_per_robot", [])}
-        samples = max((ss.get("per_robot_samples") or {}).values(), default=0)
+        report.published = ss["published_per_topic"]
+        samples = max(ss["per_robot_samples"].values(), default=0)
         if report.sim_s is None and samples:  # stopped early: what the robots stepped (sample 0 is t = 0)
             report.sim_s = (samples - 1) * dt_s
+
+
+def merge_swarm_stats(parts: list[dict]) -> dict:
+    """The stats of K swarm processes as one swarm's: counts added, robots joined, CPU added,
+    wall time and memory per process the largest."""
+    out = dict(parts[0])
+    for key in ("robots", "samples_published", "messages_published", "cpu_s", "late_steps"):
+        out[key] = sum(p.get(key, 0) for p in parts)
+    for key in ("wall_s", "rss_bytes"):
+        out[key] = max(p.get(key, 0) for p in parts)
+    out["per_robot_samples"] = {k: v for p in parts for k, v in (p.get("per_robot_samples") or {}).items()}
+    out["published_per_topic"] = {t: sum((p.get("published_per_topic") or {}).get(t, 0) for p in parts)
+                                  for t in parts[0].get("published_per_topic") or {}}
+    out["processes"] = len(parts)
+    return out

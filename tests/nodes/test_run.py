@@ -254,3 +254,46 @@ def test_sigint_to_the_whole_process_group_finalises_the_bag(tmp_path, tries):
         assert finalised, (k, logs)
         assert rerun_check(mcap_path(out)).returncode == 0
         assert summary_counts(out)["/kilobot_0/pose"] > 0
+
+
+def test_one_swarm_over_three_processes_records_what_one_process_records(tmp_path):
+    """`run --swarms 3`: three swarm processes, each a block of the ids; the world waits for all
+    of them. Every robot, clock and analysis message equals the one-process run's, byte for byte,
+    and the poses equal the batch engine's."""
+    from rosbags.rosbag2 import Reader
+
+    def raw(bag):
+        out = {}
+        with Reader(bag) as r:
+            for c, _t, data in r.messages():
+                out.setdefault(c.topic, []).append(bytes(data))
+        return out
+
+    runs = {}
+    for k in (1, 3):
+        out = tmp_path / f"k{k}"
+        res = cli("run", "--scenario", "random_walk", "--robots", "7", "--duration", "2", "--seed", "4", "--swarms",
+                  str(k), "--out", str(out))
+        assert res.returncode == 0, res.stdout + res.stderr
+        runs[k] = raw(out)
+    assert {t for t in runs[3] if t.startswith("/swarm")} == {f"/swarm_{i}/{n}" for i in range(3)
+                                                               for n in ("members", "robots")}
+    same = [t for t in runs[1] if not t.startswith(("/swarm", "/world/state"))]
+    assert set(same) == {t for t in runs[3] if not t.startswith(("/swarm", "/world/state"))}
+    for t in sorted(same, key=lambda t: not t.startswith("/kilobot_")):  # robots first: the analysis follows them
+        assert runs[3][t] == runs[1][t], t
+    members = sorted(json.loads(m.data)["robots"] for t, m in rosbags_messages(tmp_path / "k3") if t.endswith("/members"))
+    assert members == [[0, 1, 2], [3, 4], [5, 6]]
+    ref = sim.simulate(named_scenario("random_walk", 2), load_swarm_traits("", 7, 4), 4, runs=[0], record_every=1)
+    msgs = rosbags_messages(tmp_path / "k3")
+    for i in range(7):
+        xs = [m.pose.position.x for t, m in msgs if t == f"/kilobot_{i}/pose"]
+        np.testing.assert_allclose(xs, ref.traj["x"][0, i], rtol=0, atol=1e-9)
+
+
+def test_swarms_refuses_a_coupled_scenario_and_too_many_processes(tmp_path):
+    for args, text in ((["--scenario", "sync", "--robots", "4", "--swarms", "2"], "coupling"),
+                       (["--robots", "2", "--swarms", "3"], "--robots")):
+        res = cli("run", *args, "--out", str(tmp_path / "x"))
+        assert res.returncode == 2 and res.stderr.count("\n") == 1 and "--swarms" in res.stderr and text in res.stderr, res.stderr
+        assert not (tmp_path / "x").exists()
