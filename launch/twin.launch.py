@@ -15,7 +15,8 @@ import sys
 from datetime import datetime, timezone
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, RegisterEventHandler, SetEnvironmentVariable, TimerAction
+from launch.actions import (DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction, RegisterEventHandler,
+                            SetEnvironmentVariable, TimerAction)
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown
 from launch.substitutions import EnvironmentVariable, LaunchConfiguration
@@ -32,6 +33,7 @@ ARGUMENTS = {  # name: (default, description)
     "seed": ("0", "root seed of every random number (traits, noise, start poses)"),
     "mode": ("lockstep", "lockstep (simulated time, every message recorded) or realtime (wall clock)"),
     "traits": ("", "traits or population YAML file for the swarm; empty: the default population"),
+    "swarms": ("1", "swarm processes (swarm_0 .. swarm_K-1), each a block of the robot ids; uncoupled scenarios"),
     "out": (None, "bag directory to create (refused if it exists); default: bags/twin_<UTC time>"),
 }
 
@@ -51,6 +53,17 @@ def _world_exited(event, _context):
             TimerAction(period=1.0, actions=[EmitEvent(event=Shutdown(reason=f"world exited ({status})"))])]
 
 
+def _swarms(context):
+    """One swarm node per process: ``swarm`` alone, else ``swarm_0`` .. ``swarm_<K-1>``."""
+    k = int(LaunchConfiguration("swarms").perform(context))
+    names = ["swarm"] if k == 1 else [f"swarm_{i}" for i in range(k)]
+    return [Node(package="kilobot_twin", executable="swarm", name=name, output="screen",
+                 parameters=[{"robots": LaunchConfiguration("robots"), "seed": LaunchConfiguration("seed"),
+                              "traits_file": ParameterValue(LaunchConfiguration("traits"), value_type=str),
+                              "slices": k, "slice_index": i}])
+            for i, name in enumerate(names)]
+
+
 def generate_launch_description():
     default_out = "bags/twin_" + datetime.now(timezone.utc).strftime("%Y%m%d_%H%M%S")
     args = [DeclareLaunchArgument(k, default_value=default_out if v is None else v, description=d)
@@ -66,8 +79,6 @@ def generate_launch_description():
              parameters=[{"out": ParameterValue(cfg["out"], value_type=str)}]),
         Node(package="kilobot_twin", executable="analysis", name="analysis", output="screen"),
         world,
-        Node(package="kilobot_twin", executable="swarm", name="swarm", output="screen",
-             parameters=[{"robots": cfg["robots"], "seed": cfg["seed"],
-                          "traits_file": ParameterValue(cfg["traits"], value_type=str)}]),
+        OpaqueFunction(function=_swarms),
         RegisterEventHandler(OnProcessExit(target_action=world, on_exit=_world_exited)),
     ])

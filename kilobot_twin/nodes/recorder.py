@@ -61,12 +61,10 @@ class RecorderNode(Node):
         if not self.out:
             raise ConfigError("out", "empty bag path", "give e.g. -p out:=bags/run1")
         check_out_dir(self.out, "out", new=True)  # never overwrite a bag
-        try:
-            self.bag = BagWriter(self.out, chunk_size=chunk, compression=compression)
-        except OSError as exc:
-            raise ConfigError("out", f"cannot create the bag: {exc.strerror}", "give a writable directory") from None
-        self.bag.add_metadata("kilobot_twin.version", {"version": __version__, "started_at_ns": str(time.time_ns())})
-        self.channels: dict[str, int] = {}
+        self._bag_options = {"chunk_size": chunk, "compression": compression}
+        self._started_ns = time.time_ns()
+        self.bag: BagWriter | None = None  # created with the first message: a run that never starts leaves nothing
+        self.channels: dict[str, int | None] = {}  # topic -> channel id (None: subscribed, nothing written yet)
         self.world_doc: dict | None = None
         self.traits: dict[int, dict] = {}
         self.joined: list[tuple[str, int]] = []
@@ -104,26 +102,39 @@ class RecorderNode(Node):
             profile = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1 if latched else 1000,
                                  reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
                                  durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
-            cid = self.bag.add_topic(topic, type_name, qos_yaml(2 if best_effort else 1, 1 if latched else 2,
-                                                                  profile.depth))
-            self.channels[topic] = cid
+            self.channels[topic] = None
             self.joined.append((topic, time.time_ns()))
-            self.create_subscription(cls, topic, self._callback(cid, topic), profile, raw=True)
+            qos = qos_yaml(2 if best_effort else 1, 1 if latched else 2, profile.depth)
+            self.create_subscription(cls, topic, self._callback(topic, type_name, qos), profile, raw=True)
 
-    def _callback(self, cid: int, topic: str):
-        bag = self.bag
+    def _writer(self) -> BagWriter:
+        """The bag, created on the first message."""
+        if self.bag is None:
+            try:
+                self.bag = BagWriter(self.out, **self._bag_options)
+            except OSError as exc:
+                raise ConfigError("out", f"cannot create the bag: {exc.strerror}", "give a writable directory") from None
+            self.bag.add_metadata("kilobot_twin.version", {"version": __version__, "started_at_ns": str(self._started_ns)})
+        return self.bag
+
+    def _callback(self, topic: str, type_name: str, qos: str):
         time_ns = time.time_ns
+        cid = bag = None
 
         # One-argument callbacks: the EventsExecutor of rclpy 7.1.6 fails on raw callbacks that
         # also take the message info, so publish time = receive time.
         def record(data: bytes) -> None:
+            nonlocal cid, bag
+            if cid is None:  # the topic's first message: its channel goes into the bag
+                bag = self._writer()
+                cid = self.channels[topic] = bag.add_topic(topic, type_name, qos)
             bag.write(cid, data, time_ns())
 
         if ROBOT_DATA.match(topic):
             ack_every = self.ack_every
 
             def record_robot(data: bytes) -> None:
-                bag.write(cid, data, time_ns())
+                record(data)
                 self.robot_messages += 1
                 if self.robot_messages % ack_every == 0:
                     self._ack()
@@ -155,6 +166,9 @@ class RecorderNode(Node):
     # --- close -------------------------------------------------------------------------------
 
     def close(self) -> None:
+        if self.bag is None:
+            self.get_logger().info(f"no message received: no bag written at {self.out}")
+            return
         if self.bag.closed:
             return
         doc = self.world_doc or {}

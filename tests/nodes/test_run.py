@@ -297,3 +297,16 @@ def test_swarms_refuses_a_coupled_scenario_and_too_many_processes(tmp_path):
         res = cli("run", *args, "--out", str(tmp_path / "x"))
         assert res.returncode == 2 and res.stderr.count("\n") == 1 and "--swarms" in res.stderr and text in res.stderr, res.stderr
         assert not (tmp_path / "x").exists()
+
+
+def test_recorder_writes_no_bag_when_nothing_was_recorded(tmp_path):
+    """A run that never starts (e.g. a launch whose world refused its arguments) leaves no bag."""
+    out = tmp_path / "never"
+    rec = subprocess.Popen([sys.executable, "-m", "kilobot_twin.nodes.recorder", "--ros-args", "-p", f"out:={out}",
+                            "-p", "topics:=/kilobot_twin_test_nothing"], env=ENV, stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, text=True)
+    time.sleep(3)
+    rec.send_signal(signal.SIGINT)
+    log, _ = rec.communicate(timeout=30)
+    assert rec.returncode == 0, log
+    assert not out.exists() and "no bag written" in log
