@@ -275,10 +275,11 @@ def _fill_report(report: RunReport, swarm_stats: list[Path], world_stats: Path, 
 
 
 def merge_swarm_stats(parts: list[dict]) -> dict:
-    """The stats of K swarm processes as one swarm's: counts added, robots joined, CPU added,
-    wall time and memory per process the largest."""
+    """The stats of K swarm processes as one swarm's: counts, CPU and the memory the robots took
+    added, robots joined, wall time and a process's memory the largest."""
     out = dict(parts[0])
-    for key in ("robots", "samples_published", "messages_published", "cpu_s", "late_steps"):
+    for key in ("robots", "samples_published", "messages_published", "cpu_s", "late_steps", "rss_before_robots_bytes",
+                "rss_after_robots_bytes"):
         out[key] = sum(p.get(key, 0) for p in parts)
     for key in ("wall_s", "rss_bytes"):
         out[key] = max(p.get(key, 0) for p in parts)
