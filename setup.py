@@ -19,7 +19,7 @@ setup(
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
         (f"share/{PACKAGE}/launch", glob("launch/*.py")),
     ],
-    install_requires=["setuptools"],
+    install_requires=["setuptools", "numba>=0.63", "dask[distributed]>=2024.8"],
     zip_safe=False,
     entry_points={
         "console_scripts": [
