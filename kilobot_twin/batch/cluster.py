@@ -48,7 +48,7 @@ def client(spec: str):
         c = distributed.Client(cluster)
     else:
         try:
-            c = distributed.Client(value, timeout="10s")
+            c = distributed.Client(value, timeout="5s")
         except (OSError, TimeoutError) as exc:
             raise ConfigError("scheduler", f"no Dask scheduler answers at {value} ({type(exc).__name__})",
                               "start one (dask scheduler / dask-jobqueue, see README) or check host and port") from None
