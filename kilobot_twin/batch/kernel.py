@@ -12,27 +12,21 @@ functions are the C library's, as NumPy's are on this machine. :func:`math_match
 checks the latter at run time and the engine falls back to the core where it does not hold
 (NumPy builds that use SIMD versions of sin, cos, log or exp).
 
-Numba is an optional dependency: without it, :data:`AVAILABLE` is False and the engine uses
-the core.
+Numba is imported (and the kernel compiled, or loaded from its on-disk cache) on first use, so
+importing this module costs nothing. Without Numba, or with ``KILOBOT_TWIN_JIT=0``,
+:data:`AVAILABLE` is False and the engine uses the core.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import os
+import threading
 
 import numpy as np
 
-try:  # pragma: no cover - exercised by whichever branch the installation takes
-    if os.environ.get("KILOBOT_TWIN_JIT", "1") == "0":
-        raise ImportError("disabled by KILOBOT_TWIN_JIT=0")
-    import numba
-    from numba import njit
-except ImportError:  # pragma: no cover
-    numba = None
-    AVAILABLE = False
-else:
-    AVAILABLE = True
+AVAILABLE = os.environ.get("KILOBOT_TWIN_JIT", "1") != "0" and importlib.util.find_spec("numba") is not None
 
 # Behaviour kinds and light kinds the kernel knows (anything else runs on the core).
 B_STRAIGHT, B_STILL, B_RANDOM_WALK, B_PHOTOTAXIS, B_PHOTOTAXIS_ARGOS = range(5)
@@ -63,30 +57,20 @@ _P_STEP, _P_HOLD, _P_GOOD, _P_STOP, _P_TURN, _P_AFTER_TURN, _P_ARRIVED = range(7
 _A_SETUP, _A_LOOP, _A_HOLD, _A_STOP, _A_TURN = range(5)
 
 
-def _jit(**kw):
-    def wrap(f):
-        return njit(**kw)(f) if AVAILABLE else f
-    return wrap
-
-
-@_jit(inline="always")
 def _mix64(z):
     z = (z ^ (z >> _S30)) * _M1
     z = (z ^ (z >> _S27)) * _M2
     return z ^ (z >> _S31)
 
 
-@_jit(inline="always")
 def _hash(key, counter):
     return _mix64(key + np.uint64(counter) * _GOLDEN)
 
 
-@_jit(inline="always")
 def _uniform(key, counter):
     return np.float64(_hash(key, counter) >> _S11) * _TO_UNIT
 
 
-@_jit(inline="always")
 def _normal_pair(key, counter):
     z = _hash(key, counter)
     u1 = (np.float64(z >> _S32) + 0.5) * _TO_UNIT32
@@ -96,7 +80,6 @@ def _normal_pair(key, counter):
     return r * math.cos(a), r * math.sin(a)
 
 
-@_jit(inline="always")
 def _pow(v, e):
     # ndarray ** python-float takes these shortcuts in NumPy (square, sqrt, reciprocal, ...).
     if e == 2.0:
@@ -112,13 +95,11 @@ def _pow(v, e):
     return v ** e
 
 
-@_jit(inline="always")
 def _clip(v, lo, hi):
     return min(max(v, lo), hi)
 
 
-@_jit(nogil=True, cache=True)
-def advance(s0, s1, k0, k1, n, window, fp, ip, table, sweep,
+def _advance(s0, s1, k0, k1, n, window, fp, ip, table, sweep,
             x, y, th, ticks, motion, reading, mode, deadline, last, last_d, held,
             bias, clock, speed, wheel_noise, sigma_v, sigma_omega, gain, offset, noise,
             kmot, kwheel, ksens, kbeh, path, cost, rsum, visited,
@@ -297,7 +278,6 @@ def advance(s0, s1, k0, k1, n, window, fp, ip, table, sweep,
         path[s], cost[s], rsum[s] = ps, cs, rss
 
 
-@_jit(nogil=True, cache=True)
 def _elementary(v, w, out):  # pragma: no cover - compiled
     for i in range(v.size):
         out[0, i] = math.cos(v[i])
@@ -306,6 +286,31 @@ def _elementary(v, w, out):  # pragma: no cover - compiled
         out[3, i] = math.exp(-abs(v[i]))
         out[4, i] = math.hypot(v[i], w[i])
         out[5, i] = abs(v[i]) ** 0.3
+
+
+_HELPERS = ("_mix64", "_hash", "_uniform", "_normal_pair", "_pow", "_clip")
+_COMPILED: dict = {}
+_LOCK = threading.Lock()
+
+
+def _compiled(name: str):
+    """The Numba dispatcher of ``_advance`` or ``_elementary`` (wrapped once, on first use)."""
+    if not _COMPILED:
+        with _LOCK:
+            if not _COMPILED:
+                from numba import njit
+
+                g = globals()
+                for helper in _HELPERS:
+                    g[helper] = njit(inline="always")(g[helper])
+                _COMPILED["_elementary"] = njit(nogil=True, cache=True)(_elementary)
+                _COMPILED["_advance"] = njit(nogil=True, cache=True)(_advance)
+    return _COMPILED[name]
+
+
+def advance(*args) -> None:
+    """Compiled :func:`_advance` (same arguments); releases the GIL while it runs."""
+    _compiled("_advance")(*args)
 
 
 _MATCH: bool | None = None
@@ -327,7 +332,7 @@ def math_matches_numpy() -> bool:
             v = np.concatenate([g.normal(size=20000) * s for s in (1e-3, 1.0, 30.0, 1e4)])
             w = g.normal(size=v.size)
             out = np.empty((6, v.size))
-            _elementary(v, w, out)
+            _compiled("_elementary")(v, w, out)
             ref = np.stack([np.cos(v), np.sin(v), np.log(np.abs(v) + 1e-300), np.exp(-np.abs(v)), np.hypot(v, w),
                             np.abs(v) ** 0.3])
             _MATCH = bool(np.array_equal(out, ref))
