@@ -183,8 +183,9 @@ def run_campaign(c: Campaign, out: str | Path | None = None, workers: int | None
         if bar is not None:
             bar.update(counter.value - last)
 
-    poller = threading.Thread(target=poll, daemon=True)
-    poller.start()
+    poller = threading.Thread(target=poll, daemon=True) if bar is not None else None
+    if poller is not None:
+        poller.start()
 
     def collect(g, runs, summ, order):
         for k, v in summ.items():
@@ -217,7 +218,8 @@ def run_campaign(c: Campaign, out: str | Path | None = None, workers: int | None
                     collect(*f.result())
     finally:
         stop.set()
-        poller.join()
+        if poller is not None:
+            poller.join()
         if bar is not None:
             bar.close()
     elapsed = time.perf_counter() - t0
