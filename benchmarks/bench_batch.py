@@ -9,6 +9,11 @@ start). The first call compiles the kernel if its on-disk cache is cold; best-of
     python benchmarks/bench_batch.py                        # the issue's table
     python benchmarks/bench_batch.py --sizes 5x60 --cases phototaxis --repeat 5
     python benchmarks/bench_batch.py --robots 100 --runs 100  # one size (as before)
+    python benchmarks/bench_batch.py --cpu                    # CPU ns per robot-step, one worker
+
+``--cpu`` measures process CPU time with one worker instead of wall time: on a machine shared
+with other work it says what the engine costs, and 2 / (ns per robot-step) what two idle
+cores would give.
 """
 
 from __future__ import annotations
@@ -49,7 +54,11 @@ def main():
     ap.add_argument("--runs", type=int, help="one size: runs")
     ap.add_argument("--cases", default="phototaxis,straight,straight_wheel", help=f"comma list of {', '.join(CASES)}")
     ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--cpu", action="store_true", help="CPU time per robot-step with one worker (a shared machine)")
     a = ap.parse_args()
+    if a.cpu:
+        a.workers = 1
+    clock = time.process_time if a.cpu else time.perf_counter
     sizes = [_size(s) for s in a.sizes.split(",")]
     if a.robots or a.runs:
         sizes = [(a.robots or 100, a.runs or 100)]
@@ -62,10 +71,15 @@ def main():
                                      **traits}, seed=1)
             best = float("inf")
             for _ in range(a.repeat):
-                t0 = time.perf_counter()
+                t0 = clock()
                 run_campaign(Campaign(sc, swarm, seed=1, runs=runs), workers=a.workers, progress=False)
-                best = min(best, time.perf_counter() - t0)
+                best = min(best, clock() - t0)
             rate = robots * runs * a.steps / best / 1e6
+            if a.cpu:
+                ns = 1e3 / rate
+                print(f"{name:48s} {robots:4d} x {runs:4d} {ns:7.0f} ns CPU per robot-step  "
+                      f"(2 idle cores: {2e3 / ns:5.1f} M robot-steps/s)", flush=True)
+                continue
             target = TARGETS_M.get((key, robots, runs))
             note = f"  target >= {target} M: {'met' if rate >= target else 'NOT MET'}" if target else ""
             print(f"{name:48s} {robots:4d} x {runs:4d} {rate:7.1f} M robot-steps/s  ({best:.3f} s){note}", flush=True)
