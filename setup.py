@@ -33,6 +33,8 @@ setup(
         "matplotlib>=3.8",
         "scipy>=1.11",
         "pyarrow>=14",
+        "numba>=0.63",
+        "dask[distributed]>=2024.8",
     ],
     zip_safe=False,
     entry_points={

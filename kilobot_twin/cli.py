@@ -19,18 +19,29 @@ from .outputs import CreatedDirs, check_out_dir, check_out_file
 
 def simulate(config: str, out: str | None = None, traits: str | None = None, seed: int | None = None,
              runs: int | None = None, robots: int | None = None, workers: int | None = None,
-             parquet: bool = False, progress: bool = True) -> dict:
-    """Run one configuration file (see :mod:`kilobot_twin.config`) and write its results."""
+             parquet: bool = False, progress: bool = True, scheduler: str | None = None) -> dict:
+    """Run one configuration file (see :mod:`kilobot_twin.config`) and write its results.
+
+    ``scheduler``: ``local:N`` or ``tcp://HOST:PORT`` runs the campaign on a Dask cluster."""
     from .batch import run_campaign
     from .config import load_config
 
     out = out or str(Path("results") / (Path(config).stem + ".npz"))
     check_out_file(out)
     cfg = load_config(config, traits_path=traits, seed=seed, runs=runs, n_robots=robots)
+    _connect(scheduler)
     result = run_campaign(cfg.campaign(), out=out, workers=workers, progress=progress, parquet=parquet,
-                          desc=Path(config).stem)
+                          desc=Path(config).stem, scheduler=scheduler)
     result["path"] = out
     return result
+
+
+def _connect(scheduler: str | None) -> None:
+    """Reach the Dask scheduler before anything is written (a one-line error if it is not there)."""
+    if scheduler is not None:
+        from .batch.cluster import client
+
+        client(scheduler)
 
 
 def draw_traits(population: str, out: str, seed: int = 0, robots: int | None = None) -> Path:
@@ -51,21 +62,24 @@ def check_traits(path: str) -> int:
 
 
 def experiment(name: str, out: str = "out/experiments", preset: str = "paper", quick: bool = False, seed: int = 2023,
-               workers: int | None = None, progress: bool = True):
+               workers: int | None = None, progress: bool = True, scheduler: str | None = None):
     """Run one of the paper's experiments, save its arrays and plots, return its outcome."""
     from .experiments import Settings, run_experiment
 
     check_out_dir(out)
-    return run_experiment(name, Settings(preset, quick, seed, workers, progress), out)
+    settings = Settings(preset, quick, seed, workers, progress, scheduler)
+    _connect(scheduler)
+    return run_experiment(name, settings, out)
 
 
 def reproduce(out: str = "out/reproduce", preset: str = "paper", quick: bool = False, seed: int = 2023,
-              workers: int | None = None, progress: bool = True) -> dict:
+              workers: int | None = None, progress: bool = True, scheduler: str | None = None) -> dict:
     """Run all eight experiments and write DIR/report.md (+ report.json, figures, arrays)."""
     from .experiments.report import reproduce as _reproduce
 
     check_out_dir(out)
-    return _reproduce(out, preset, quick, seed, workers, progress)
+    _connect(scheduler)
+    return _reproduce(out, preset, quick, seed, workers, progress, scheduler)
 
 
 def synth(kind: str, hidden: str, out: str, robots: int | None = None, trials: int | None = None, seed: int = 0) -> dict:
@@ -165,7 +179,8 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int)
     s.add_argument("--runs", type=_positive_int)
     s.add_argument("--robots", type=_positive_int, help="number of robots (population configs)")
-    s.add_argument("--workers", type=_positive_int, help="processes (default: all cores)")
+    s.add_argument("--workers", type=_positive_int, help="threads or processes (default: all cores)")
+    s.add_argument("--scheduler", type=_scheduler, help=_SCHEDULER_HELP)
     s.add_argument("--parquet", action="store_true", help="also write a long-format .parquet table")
     s.add_argument("--no-progress", action="store_true")
 
@@ -185,6 +200,7 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--quick", action="store_true")
     e.add_argument("--seed", type=int, default=2023)
     e.add_argument("--workers", type=_positive_int)
+    e.add_argument("--scheduler", type=_scheduler, help=_SCHEDULER_HELP)
     e.add_argument("--no-progress", action="store_true")
 
     r = sub.add_parser("reproduce", help="run all eight experiments and write a paper-vs-ours report")
@@ -193,6 +209,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--quick", action="store_true", help="reduced runs (under 2 minutes)")
     r.add_argument("--seed", type=int, default=2023)
     r.add_argument("--workers", type=_positive_int)
+    r.add_argument("--scheduler", type=_scheduler, help=_SCHEDULER_HELP)
     r.add_argument("--no-progress", action="store_true")
 
     sy = sub.add_parser("synth", help="write a measured dataset from the twin with hidden effects (+ truth.json)")
@@ -260,6 +277,20 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+_SCHEDULER_HELP = ("run campaigns on Dask: local:N (a local cluster of N worker processes) or tcp://HOST:PORT "
+                   "(a running scheduler); default: this machine's cores")
+
+
+def _scheduler(text: str) -> str:
+    from .batch.cluster import parse_scheduler
+
+    try:
+        parse_scheduler(text)
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("scheduler: ")) from None
+    return text
+
+
 def _positive_int(text: str) -> int:
     try:
         v = int(text)
@@ -277,7 +308,7 @@ def main(argv=None) -> int:
     try:
         if args.verb == "simulate":
             res = simulate(args.config, args.out, args.traits, args.seed, args.runs, args.robots, args.workers,
-                           args.parquet, not args.no_progress)
+                           args.parquet, not args.no_progress, args.scheduler)
             meta = res["meta"]
             print(f"wrote {res['path']}: {len(res['points'])} grid point(s) x {meta['runs']} run(s) x "
                   f"{len(res['swarm'])} robot(s), {meta['robot_steps'] / meta['elapsed_s'] / 1e6:.1f} M robot-steps/s")
@@ -294,14 +325,16 @@ def main(argv=None) -> int:
             print(f"plot: {res['plot']}\nsummary: {res['summary_path']}\nthis run: {res['run_dir']} "
                   f"({Path(args.out) / 'latest'} points at it)")
         elif args.verb == "experiment":
-            o = experiment(args.name, args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress)
+            o = experiment(args.name, args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress,
+                           args.scheduler)
             for c in o.checks:
                 print(f"[{'met' if c.met else 'NOT MET'}] Fig. {c.figure}: {c.fact}: paper {c.paper}, ours {c.ours}"
                       + (f" ({c.note})" if c.note else ""))
             print(f"{sum(c.met for c in o.checks)} of {len(o.checks)} checks met")
             print("\n".join(["plots:"] + o.plots + [f"data: {o.meta['data']}"]))
         elif args.verb == "reproduce":
-            doc = reproduce(args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress)
+            doc = reproduce(args.out, args.preset, args.quick, args.seed, args.workers, not args.no_progress,
+                            args.scheduler)
             print(f"{doc['met']} of {doc['total']} checks met in {doc['elapsed_s']:.0f} s; report: {args.out}/report.md")
         elif args.verb == "synth":
             truth = synth(args.kind, args.hidden, args.out, args.robots, args.trials, args.seed)

@@ -1,4 +1,5 @@
-"""The vectorised Monte Carlo engine: campaigns over parameter grids, sharded over cores."""
+"""The Monte Carlo engine: campaigns over parameter grids on a compiled kernel (bit-identical to
+the NumPy core), over local cores or a Dask cluster."""
 
 from .campaign import Campaign, load_results, run_campaign, save_results
 

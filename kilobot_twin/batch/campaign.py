@@ -1,10 +1,15 @@
-"""Campaigns: a parameter grid x Monte Carlo runs, sharded over local cores.
+"""Campaigns: a parameter grid x Monte Carlo runs, sharded over local cores or a Dask cluster.
 
-Every (grid point, chunk of runs) is one task; workers run :func:`kilobot_twin.core.sim.simulate`
-on it. Because random streams are keyed by (seed, run, robot), how the runs are chunked or
-spread over processes changes nothing in the results. Summaries (grid, runs, robots) are
-gathered in the parent (they are small); trajectories, when asked for, are streamed to one
-``.npz`` shard per task instead of being held in memory.
+Every (grid point, chunk of runs) is one task; it runs :func:`kilobot_twin.batch.engine.simulate`
+(the compiled kernel over all (run, robot) slots of the task, or the core where the kernel
+does not apply). Because random streams are keyed by (seed, run, robot), how the runs are
+chunked or spread over threads, processes or machines changes nothing in the results.
+
+Where they run: tasks on the compiled kernel go to a pool of ``workers`` threads (the kernel
+releases the GIL); tasks on the core to a pool of ``workers`` processes; with ``scheduler``
+(``local:N`` or ``tcp://HOST:PORT``, see :mod:`.cluster`) to a Dask cluster. Summaries (grid,
+runs, robots) are gathered here (they are small); trajectories, when asked for, are streamed
+to one ``.npz`` shard per task instead of being held in memory.
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ import multiprocessing as mp
 import os
 import threading
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -24,10 +29,10 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .. import __version__
-from ..core import sim
 from ..core.scenario import Scenario, _deep_merge, scenario_from_dict
 from ..core.traits import TRAIT_NAMES, SwarmTraits
 from ..errors import ConfigError
+from . import engine
 
 
 @dataclass
@@ -87,14 +92,29 @@ def _bump(n_robot_steps: int):
             _COUNTER.value += n_robot_steps
 
 
-def _run_task(task):
+def _run_task(task, bump=None):
+    """Run one task; report robot-steps to ``bump`` (default: the worker's shared counter)."""
     g, scenario, swarm, seed, runs, trials, record_every, shard = task
     n_robots = len(swarm)
-    res = sim.simulate(scenario, swarm, seed, runs=runs, trials=trials, record_every=record_every,
-                       progress=lambda steps: _bump(steps * len(runs) * n_robots))
+    bump = bump or _bump
+    res = engine.simulate(scenario, swarm, seed, runs=runs, trials=trials, record_every=record_every,
+                          progress=lambda steps: bump(steps * len(runs) * n_robots))
     if shard is not None and res.traj is not None:
-        np.savez(shard, t_s=res.t_s, runs=runs, robot_ids=swarm.ids, **res.traj)
+        _write_shard(shard, res.t_s, runs, swarm.ids, res.traj)
     return g, runs, res.summary, res.order
+
+
+def _run_remote(task):
+    """A task on a Dask worker: trajectories travel back with the result (the client writes the
+    shard), so workers need no file system shared with the client."""
+    g, scenario, swarm, seed, runs, trials, record_every, shard = task
+    res = engine.simulate(scenario, swarm, seed, runs=runs, trials=trials, record_every=record_every)
+    traj = (res.t_s, res.traj) if shard is not None and res.traj is not None else None
+    return g, runs, res.summary, res.order, traj
+
+
+def _write_shard(shard, t_s, runs, robot_ids, traj):
+    np.savez(shard, t_s=t_s, runs=runs, robot_ids=robot_ids, **traj)
 
 
 def _chunks(n_runs: int, n_robots: int, workers: int, target_robots: int = 2500) -> list[np.ndarray]:
@@ -105,8 +125,16 @@ def _chunks(n_runs: int, n_robots: int, workers: int, target_robots: int = 2500)
 
 
 def run_campaign(c: Campaign, out: str | Path | None = None, workers: int | None = None, progress: bool = True,
-                 parquet: bool = False, desc: str = "campaign") -> dict:
+                 parquet: bool = False, desc: str = "campaign", scheduler: str | None = None) -> dict:
     """Run a campaign and return its results (and write them if ``out`` is given).
+
+    Parameters
+    ----------
+    workers : int, optional
+        Local threads or processes (default: all cores); ignored with ``scheduler``.
+    scheduler : str, optional
+        ``local:N`` (a Dask LocalCluster of N worker processes) or ``tcp://HOST:PORT`` (a running
+        Dask scheduler); None runs on this machine's pool. The results are the same either way.
 
     Returns
     -------
@@ -114,6 +142,12 @@ def run_campaign(c: Campaign, out: str | Path | None = None, workers: int | None
         ``summary``: metric -> (G, R, N) array; ``points``: list of grid points; ``meta``: dict;
         ``order``: (G, R, T) Kuramoto order parameter for blink scenarios.
     """
+    dask_client = None
+    if scheduler is not None:
+        from .cluster import client, worker_threads
+
+        dask_client = client(scheduler)
+        workers = worker_threads(dask_client)
     workers = workers or os.cpu_count() or 1
     points = c.points()
     scenarios = [c.scenario_at(p) for p in points]
@@ -149,8 +183,9 @@ def run_campaign(c: Campaign, out: str | Path | None = None, workers: int | None
         if bar is not None:
             bar.update(counter.value - last)
 
-    poller = threading.Thread(target=poll, daemon=True)
-    poller.start()
+    poller = threading.Thread(target=poll, daemon=True) if bar is not None else None
+    if poller is not None:
+        poller.start()
 
     def collect(g, runs, summ, order):
         for k, v in summ.items():
@@ -160,12 +195,21 @@ def run_campaign(c: Campaign, out: str | Path | None = None, workers: int | None
         if order is not None:
             orders.setdefault(g, {})[int(runs[0])] = order
 
+    def bump(n_robot_steps):
+        with counter.get_lock():
+            counter.value += n_robot_steps
+
     try:
-        if workers == 1 or len(tasks) == 1:
-            _init_worker(counter)
+        if dask_client is not None:
+            _run_dask(dask_client, tasks, collect, bump, n_robots)
+        elif workers == 1 or len(tasks) == 1:
             for t in tasks:
-                collect(*_run_task(t))
-            _init_worker(None)
+                collect(*_run_task(t, bump))
+        elif all(engine.compiled(sc) for sc in scenarios):
+            with ThreadPoolExecutor(max_workers=workers) as pool:
+                futures = [pool.submit(_run_task, t, bump) for t in tasks]
+                for f in as_completed(futures):
+                    collect(*f.result())
         else:
             with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork"),
                                      initializer=_init_worker, initargs=(counter,)) as pool:
@@ -174,7 +218,8 @@ def run_campaign(c: Campaign, out: str | Path | None = None, workers: int | None
                     collect(*f.result())
     finally:
         stop.set()
-        poller.join()
+        if poller is not None:
+            poller.join()
         if bar is not None:
             bar.close()
     elapsed = time.perf_counter() - t0
@@ -193,12 +238,33 @@ def run_campaign(c: Campaign, out: str | Path | None = None, workers: int | None
         "elapsed_s": elapsed,
         "robot_steps": total,
         "workers": workers,
+        "scheduler": scheduler or "local",
         "trajectories": str(traj_dir) if traj_dir is not None else None,
     }
     result = {"summary": summary, "points": points, "meta": meta, "order": order, "swarm": c.swarm}
     if out is not None:
         save_results(result, out, parquet=parquet)
     return result
+
+
+def _run_dask(dask_client, tasks, collect, bump, n_robots):
+    """Submit every task to the cluster; gather (and write shards) as they complete."""
+    from distributed import as_completed as dask_completed
+
+    futures = {dask_client.submit(_run_remote, t, pure=False): t for t in tasks}
+    try:
+        for f in dask_completed(futures):
+            task = futures[f]
+            g, runs, summ, order, traj = f.result()
+            if traj is not None:
+                _write_shard(task[7], traj[0], runs, task[2].ids, traj[1])
+            collect(g, runs, summ, order)
+            bump(task[1].n_steps * len(runs) * n_robots)
+            f.release()
+    except BaseException:
+        for f in futures:
+            f.cancel()
+        raise
 
 
 def _bar(total: int, desc: str):

@@ -16,13 +16,18 @@ PRESET_NAMES = tuple(PRESETS)
 
 @dataclass
 class Settings:
-    """How to run an experiment: preset, reduced size, seed, cores, progress bars."""
+    """How to run an experiment: preset, reduced size, seed, cores, progress bars.
+
+    ``scheduler``: None runs campaigns on this machine's cores; ``local:N`` or ``tcp://HOST:PORT``
+    on a Dask cluster (see :mod:`kilobot_twin.batch.cluster`), with the same results.
+    """
 
     preset: str = "paper"
     quick: bool = False
     seed: int = 2023
     workers: int | None = None
     progress: bool = True
+    scheduler: str | None = None
 
     def __post_init__(self):
         if self.preset not in PRESETS:

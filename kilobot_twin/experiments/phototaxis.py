@@ -35,7 +35,7 @@ def run_phototaxis(s: Settings) -> Outcome:
                              **s.noise_traits()}, seed=s.seed)
     sc = s.scenario(behavior={"kind": s.scenario().behavior.name})
     res = run_campaign(Campaign(sc, swarm, s.seed, runs, grid={"behavior.p_right": list(P_RIGHTS)}),
-                       workers=s.workers, progress=s.progress, desc="phototaxis")
+                       workers=s.workers, progress=s.progress, desc="phototaxis", scheduler=s.scheduler)
     cost = res["summary"]["cost_m"]  # (3, runs, robots)
     # Fig. 4: noiseless trajectories of a left-, zero- and right-biased robot, P_R = 1.
     ex_axis = np.array([-0.02, 0.0, 0.02])

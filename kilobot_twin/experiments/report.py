@@ -35,12 +35,12 @@ NOTES = {
 
 
 def reproduce(out: str | Path, preset: str = "paper", quick: bool = False, seed: int = 2023,
-              workers: int | None = None, progress: bool = True) -> dict:
+              workers: int | None = None, progress: bool = True, scheduler: str | None = None) -> dict:
     from tqdm.auto import tqdm
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    settings = Settings(preset=preset, quick=quick, seed=seed, workers=workers, progress=progress)
+    settings = Settings(preset=preset, quick=quick, seed=seed, workers=workers, progress=progress, scheduler=scheduler)
     results = {}
     t_all = time.perf_counter()
     bar = tqdm(list(EXPERIMENTS), desc="reproduce", unit="experiment", disable=not progress)

@@ -35,7 +35,8 @@ def run_random_walk(s: Settings) -> Outcome:
     b = setup["axis"] * s.bias_scale
     swarm = draw_population({"n": n, "heading_bias": {"dist": "linspace", "low": -b, "high": b},
                              "wheel_noise": 0.5}, seed=s.seed)
-    res = run_campaign(Campaign(sc, swarm, s.seed, runs), workers=s.workers, progress=s.progress, desc="random walk")
+    res = run_campaign(Campaign(sc, swarm, s.seed, runs), workers=s.workers, progress=s.progress, desc="random walk",
+                       scheduler=s.scheduler)
     cov = res["summary"]["coverage_m2"][0]  # (runs, robots)
     data = {"bias": swarm.heading_bias / s.bias_scale, "coverage_m2": cov}
     meta = {**setup, "robots": n, "runs": runs, "cell_m": 0.033, "seed": s.seed}
