@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 
 
-def _plt():
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (files only, no display)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -23,7 +24,7 @@ def save(fig, path, dpi: int = 110, rect=None) -> Path:
     """Lay out (within ``rect`` of the figure, e.g. to keep room for a figure legend), write and close a figure."""
     fig.tight_layout(rect=rect)
     fig.savefig(path, dpi=dpi)
-    _plt().close(fig)
+    pyplot().close(fig)
     return Path(path)
 
 
@@ -44,7 +45,7 @@ def cost_vs_bias(bias, cost, labels, path, delta_acc=0.75, title="Phototaxis cos
     cost : (G, R, N) cost per grid point, run, robot (m)
     labels : list of G panel titles
     """
-    plt = _plt()
+    plt = pyplot()
     G = cost.shape[0]
     fig, axes = plt.subplots(1, G, figsize=(4.2 * G + 1.0, 4.1), sharey=True, squeeze=False)
     order = np.argsort(bias)
@@ -67,5 +68,5 @@ def cost_vs_bias(bias, cost, labels, path, delta_acc=0.75, title="Phototaxis cos
     fig.supxlabel(xlabel, fontsize=10)
     fig.suptitle(title)
     fig.savefig(path, dpi=120, bbox_inches="tight")
-    _plt().close(fig)
+    pyplot().close(fig)
     return Path(path)

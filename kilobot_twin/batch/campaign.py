@@ -29,7 +29,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .. import __version__
-from ..core.scenario import Scenario, _deep_merge, scenario_from_dict
+from ..core.scenario import Scenario, with_overrides
 from ..core.traits import TRAIT_NAMES, SwarmTraits
 from ..errors import ConfigError
 from . import engine
@@ -64,17 +64,7 @@ class Campaign:
         return [dict(zip(keys, vals)) for vals in itertools.product(*(self.grid[k] for k in keys))] or [{}]
 
     def scenario_at(self, point: Mapping[str, Any]) -> Scenario:
-        if not point:
-            return self.scenario
-        override: dict = {}
-        for dotted, value in point.items():
-            node = override
-            parts = dotted.split(".")
-            for p in parts[:-1]:
-                node = node.setdefault(p, {})
-            node[parts[-1]] = value
-        base = self.scenario.to_dict()
-        return scenario_from_dict(_deep_merge(base, override), source="grid")
+        return with_overrides(self.scenario, point, source="grid")
 
 
 # --- worker side -------------------------------------------------------------------------

@@ -250,8 +250,8 @@ def behavior_from_dict(data: Mapping[str, Any] | str, where: str = "behavior.", 
 
     The one behaviour validator (YAML files, ROS parameters): unknown kinds and keys are errors;
     integer fields take whole numbers >= 1 (``half_period_ticks``, ...) or >= 0
-    (``loop_overhead_ticks``); every other field is a non-negative number; probabilities lie in
-    [0, 1]. ``where`` prefixes the field names in messages (``phototaxis.`` for a ROS parameter).
+    (``loop_overhead_ticks``); durations (``*_ms``, ``*_s``) are non-negative; probabilities lie in
+    [0, 1]; thresholds and margins (light differences) may take any sign. ``where`` prefixes the field names in messages (``phototaxis.`` for a ROS parameter).
     """
     if isinstance(data, str):
         data = {"kind": data}
@@ -272,8 +272,8 @@ def behavior_from_dict(data: Mapping[str, Any] | str, where: str = "behavior.", 
                                   source)
         elif f.name.startswith("p_") and not 0.0 <= v <= 1.0:
             raise ConfigError(f"{where}{f.name}", f"{v} is not a probability", "use a value in [0, 1]", source)
-        elif v < 0:
-            raise ConfigError(f"{where}{f.name}", f"must be non-negative, got {v}", "use a value >= 0", source)
+        elif f.name.endswith(("_ms", "_s")) and v < 0:
+            raise ConfigError(f"{where}{f.name}", f"a duration must be non-negative, got {v}", "use a value >= 0", source)
     return _sub(cls, values, where, source)
 
 
@@ -324,6 +324,21 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "") -> Scenario:
 def preset_traits(preset: str | None) -> dict:
     """Population defaults a preset implies (e.g. the authors' wheel noise)."""
     return dict(PRESETS.get(preset or "", {}).get("traits", {}))
+
+
+def with_overrides(scenario: Scenario, dotted: Mapping[str, Any], source: str = "overrides") -> Scenario:
+    """``scenario`` with dotted overrides applied and validated, e.g.
+    ``{"behavior.p_right": 1.0, "light.center": [0.5, 0]}`` (a grid point of a campaign)."""
+    if not dotted:
+        return scenario
+    override: dict = {}
+    for key, value in dotted.items():
+        node = override
+        parts = key.split(".")
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+        node[parts[-1]] = value
+    return scenario_from_dict(_deep_merge(scenario.to_dict(), override), source=source)
 
 
 def _deep_merge(a: dict, b: Mapping) -> dict:

@@ -82,9 +82,9 @@ def plot_straight(o: Outcome, out_dir):
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
-    from ..plots import _plt, bias_cmap, save
+    from ..plots import pyplot, bias_cmap, save
 
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.6), sharex=True, sharey=True)
     d = o.data
     cmap = bias_cmap()
@@ -148,9 +148,9 @@ def run_bias_per_robot(s: Settings) -> Outcome:
 
 
 def plot_bias_per_robot(o: Outcome, out_dir):
-    from ..plots import _plt, bias_cmap, save
+    from ..plots import pyplot, bias_cmap, save
 
-    plt = _plt()
+    plt = pyplot()
     est = o.data["estimated"]
     order = np.argsort(est.mean(axis=0))
     fig, (ax, axh) = plt.subplots(1, 2, figsize=(10, 4), gridspec_kw={"width_ratios": [5, 1]}, sharey=True)
@@ -190,9 +190,9 @@ def run_decalibration(s: Settings) -> Outcome:
 
 
 def plot_decalibration(o: Outcome, out_dir):
-    from ..plots import _plt, save
+    from ..plots import pyplot, save
 
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(4.5, 4.5))
     colors = plt.get_cmap("summer")(np.linspace(0, 1, o.data["x"].shape[0]))
     for k in range(o.data["x"].shape[0]):

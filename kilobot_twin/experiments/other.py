@@ -76,9 +76,9 @@ def _sensing_checks(d):
 
 
 def plot_sensing(o: Outcome, out_dir):
-    from ..plots import _plt, save
+    from ..plots import pyplot, save
 
-    plt = _plt()
+    plt = pyplot()
     d = o.data
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
     t = np.arange(d["readings"].shape[1]) * 0.1
@@ -167,9 +167,9 @@ def _frequency_checks(d):
 
 
 def plot_frequency(o: Outcome, out_dir):
-    from ..plots import _plt, save
+    from ..plots import pyplot, save
 
-    plt = _plt()
+    plt = pyplot()
     d = o.data
     sw = d["switches"]
     order = np.argsort(sw.mean(axis=0))
@@ -242,9 +242,9 @@ def _kuramoto_checks(d):
 
 
 def plot_kuramoto(o: Outcome, out_dir):
-    from ..plots import _plt, save
+    from ..plots import pyplot, save
 
-    plt = _plt()
+    plt = pyplot()
     d = o.data
     fig, axes = plt.subplots(1, 2, figsize=(12, 4))
     cmap = plt.get_cmap("plasma")

@@ -128,9 +128,9 @@ def phototaxis_checks(d) -> list[Check]:
 
 
 def plot_phototaxis(o: Outcome, out_dir):
-    from ..plots import _plt, bias_cmap, cost_vs_bias, save
+    from ..plots import pyplot, bias_cmap, cost_vs_bias, save
 
-    plt = _plt()
+    plt = pyplot()
     d = o.data
     axis, cost = d["bias_axis"], d["cost_m"]
     scale = o.meta["bias_axis_scale"]

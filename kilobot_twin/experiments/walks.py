@@ -71,9 +71,9 @@ def _checks(d, bias_range):
 
 
 def plot_random_walk(o: Outcome, out_dir):
-    from ..plots import _plt, bias_cmap, save
+    from ..plots import pyplot, bias_cmap, save
 
-    plt = _plt()
+    plt = pyplot()
     d = o.data
     fig, ax = plt.subplots(figsize=(6, 4.5))
     b = np.tile(d["bias"], d["coverage_m2"].shape[0])

@@ -8,9 +8,9 @@ import numpy as np
 
 
 def write_markdown(out: Path, report: dict, sections: list) -> Path:
-    from ..plots import _plt, save
+    from ..plots import pyplot, save
 
-    plt = _plt()
+    plt = pyplot()
     lines = ["# Twin vs measurement", "",
              f"Named effects (in the order added): **{', '.join(report['named_effects']) or 'none'}**; "
              f"unexplained: **{report['unexplained']}**"
