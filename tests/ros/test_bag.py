@@ -10,8 +10,8 @@ from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
 from kilobot_twin.ros import convert
-from kilobot_twin.ros.bag import BagWriter, mcap_path, read_metadata, repair_bag, summary_counts
-from kilobot_twin.ros.schemas import ros2msg_schema
+from kilobot_twin.recording.bag import BagWriter, mcap_path, read_metadata, repair_bag, summary_counts
+from kilobot_twin.recording.schemas import ros2msg_schema
 
 RERUN = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
 
