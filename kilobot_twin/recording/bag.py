@@ -349,6 +349,11 @@ class _Scan:
     magic_ok: bool = True
     records: int = 0
     footer: bool = False
+    footer_at: int = 0
+    summary_start: int = 0
+    summary_crc: int = 0
+    summary_damaged: bool = False
+    top: list = field(default_factory=list)             # (offset, record) outside chunks, to be checked
     data_end: int | None = None
     truncated_at: int | None = None
 
@@ -391,7 +396,30 @@ def _scan(buf) -> _Scan:
             continue
         s.records += 1
         pos = end
+    _take_top_level(s, buf)
     return s
+
+
+def _take_top_level(s: _Scan, buf) -> None:
+    """Schemas, channels, statistics and chunk index outside chunks. Those of the summary section
+    are used only when its CRC (in the footer) holds: unlike chunks they carry no CRC of their own."""
+    summary_ok = False
+    if s.footer and 0 < s.summary_start <= s.footer_at:
+        summary_ok = not s.summary_crc or zlib.crc32(buf[s.summary_start:s.footer_at + 25]) == s.summary_crc
+        if not summary_ok:
+            s.summary_damaged = True
+    for pos, r in s.top:
+        in_summary = s.footer and s.summary_start and pos >= s.summary_start
+        if in_summary and not summary_ok:
+            continue
+        if isinstance(r, Schema):
+            s.schemas.setdefault(r.id, r)
+        elif isinstance(r, Channel):
+            s.channels.setdefault(r.id, r)
+        elif isinstance(r, Statistics):
+            s.stats = r
+        else:
+            s.index_offsets.append(r[1])
 
 
 def _framing_ok(payload) -> bool:
@@ -418,20 +446,18 @@ def _record(s: _Scan, op: int, pos: int, payload) -> None:
             else:
                 s.schemas.setdefault(r.id, r)
     elif op == 0x03:
-        r = _exact(Schema, bytes(payload))
-        s.schemas.setdefault(r.id, r)
+        s.top.append((pos, _exact(Schema, bytes(payload))))
     elif op == 0x04:
-        r = _exact(Channel, bytes(payload))
-        s.channels.setdefault(r.id, r)
+        s.top.append((pos, _exact(Channel, bytes(payload))))
     elif op == 0x0C:
         r = _exact(Metadata, bytes(payload))
         s.metadata[r.name] = dict(r.metadata)
     elif op == 0x0B:
-        s.stats = _exact(Statistics, bytes(payload))
+        s.top.append((pos, _exact(Statistics, bytes(payload))))
     elif op == 0x08:
         if len(payload) < 32:
             raise _Bad("chunk index too short")
-        s.index_offsets.append(_U64.unpack_from(payload, 16)[0])   # after start and end times
+        s.top.append((pos, ("chunk index", _U64.unpack_from(payload, 16)[0])))   # after start and end times
     elif op == 0x05:
         if len(payload) < _MESSAGE_HEAD.size:
             raise _Bad("message record too short")
@@ -442,6 +468,8 @@ def _record(s: _Scan, op: int, pos: int, payload) -> None:
         if len(payload) != 20:
             raise _Bad("footer of the wrong length")
         s.footer = True
+        s.summary_start, _offsets, s.summary_crc = struct.unpack_from("<QQI", payload, 0)
+        s.footer_at = pos
     elif op == 0x0F:
         s.data_end = pos
     # header, message/metadata/attachment indexes, attachments, summary offsets, data end: nothing to keep
@@ -501,8 +529,9 @@ class BagReader:
             raise ConfigError(str(self.file), "not an MCAP file (no MCAP record in it)",
                               "give a bag directory written by `kilobot-twin run` or `import`")
         self._scan = scan
-        self._types = {cid: (ch.topic, scan.schemas[ch.schema_id].name if ch.schema_id in scan.schemas else "")
-                       for cid, ch in scan.channels.items()}
+        # A channel is usable with its schema (the type name); schema 0 means "no schema".
+        self._types = {cid: (ch.topic, scan.schemas[ch.schema_id].name if ch.schema_id else "")
+                       for cid, ch in scan.channels.items() if ch.schema_id in scan.schemas or not ch.schema_id}
         scan.messages.sort(key=lambda m: m.log_time)   # stable: write order among equal times
         self.lost_channel_messages = sum(1 for m in scan.messages if m.channel_id not in self._types)
         self.finalised = scan.footer
@@ -511,6 +540,7 @@ class BagReader:
         self.chunks_total = (scan.stats.chunk_count if scan.stats is not None
                              else len(scan.index_offsets) if scan.index_offsets else None)
         self.damaged = bool(scan.bad_chunks or scan.skipped or scan.truncated_at is not None or not scan.footer
+                            or scan.summary_damaged
                             or not scan.magic_ok or self.lost_channel_messages
                             or (self.chunks_total is not None and self.chunks_total != self.chunks_read))
         self.note = f"{self._describe()}; {repair_hint(self.dir)}" if self.damaged else None
@@ -539,8 +569,10 @@ class BagReader:
             parts.append(f"{what}bytes {a}-{b} unreadable ({why})")
         if not s.magic_ok:
             parts.append("the file's magic is damaged")
+        if s.summary_damaged:
+            parts.append("the summary section is damaged (CRC mismatch) and was not used")
         if self.lost_channel_messages:
-            parts.append(f"{self.lost_channel_messages} message(s) whose channel record is lost")
+            parts.append(f"{self.lost_channel_messages} message(s) whose channel or schema record is lost")
         if s.truncated_at is not None:
             parts.append(f"the file ends inside a record at byte {s.truncated_at} (truncated or the recorder was killed)")
         elif not s.footer:
@@ -552,7 +584,8 @@ class BagReader:
         """[{id, topic, type, qos}] of every channel whose definition was read."""
         s = self._scan
         return [{"id": cid, "topic": ch.topic, "type": self._types[cid][1],
-                 "qos": ch.metadata.get("offered_qos_profiles", "")} for cid, ch in sorted(s.channels.items())]
+                 "qos": ch.metadata.get("offered_qos_profiles", "")} for cid, ch in sorted(s.channels.items())
+                if cid in self._types]
 
     def messages(self, topics=None) -> Iterator[BagMessage]:
         """(topic, type name, log time ns, publish time ns, CDR bytes) in log-time order."""
@@ -570,7 +603,7 @@ class BagReader:
 
     def counts(self) -> dict[str, int]:
         """Readable messages per topic (every channel read, also those with none)."""
-        out = {ch.topic: 0 for ch in self._scan.channels.values()}
+        out = {topic: 0 for topic, _type in self._types.values()}
         for m in self._scan.messages:
             tt = self._types.get(m.channel_id)
             if tt is not None:

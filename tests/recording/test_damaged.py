@@ -8,7 +8,7 @@ the repaired bags are read back with ``rosbags``.
 
 from __future__ import annotations
 
-import shutil
+import re
 import struct
 from collections import Counter
 from pathlib import Path
@@ -139,8 +139,12 @@ def test_every_reading_verb_ends_cleanly_and_repair_keeps_every_intact_chunk(bag
         assert (results["info"] == 0) == (sum(expected.values()) > 0)
     if results["info"] == 0:
         code, out, err = run_cli(capfd, "bag", "info", bag)
-        shown = {ln.split()[0]: int(ln.split()[1]) for ln in out.splitlines() if ln.startswith("/")}
-        assert {k: v for k, v in shown.items() if v} == dict(expected)
+        shown = Counter({ln.split()[0]: int(ln.split()[1]) for ln in out.splitlines() if ln.startswith("/")})
+        # Every message of an intact chunk is shown, unless the record defining its channel or
+        # schema (in a damaged chunk and in a damaged summary) is lost: then the note counts it.
+        lost = re.search(r"(\d+) message\(s\) whose channel or schema record is lost", err)
+        assert shown <= expected and sum(expected.values()) - sum(shown.values()) == (int(lost[1]) if lost else 0)
+        expected = +shown
     assert results["gap"] == 2   # a twin run is one trial: refused in one line, also when damaged
 
     mcap_before = mcap_path(bag).read_bytes()
@@ -167,8 +171,10 @@ def test_every_reading_verb_ends_cleanly_and_repair_keeps_every_intact_chunk(bag
         assert (bag / "metadata.yaml.damaged").read_text() == (good / "metadata.yaml").read_text()
         assert {t["topic_metadata"]["name"] for t in info["topics_with_message_count"]} == {
             t["topic_metadata"]["name"] for t in good_info["topics_with_message_count"]}
-    meta = BagReader(bag).metadata()
-    assert meta["kilobot_twin.world"] == BagReader(good).metadata()["kilobot_twin.world"]
+    meta, good_meta = BagReader(bag).metadata(), BagReader(good).metadata()
+    assert all(meta[k] == good_meta[k] for k in good_meta if k in meta)   # records kept as they were
+    if kind != "flipped":   # flipped bytes may hit a metadata record (they carry no CRC)
+        assert set(good_meta) <= set(meta)
     # Repaired: every verb reads it without a note; repair again leaves it alone.
     code, out, err = run_cli(capfd, "bag", "info", bag)
     assert code == 0 and err == ""
