@@ -402,16 +402,18 @@ def _scan(buf) -> _Scan:
 
 def _take_top_level(s: _Scan, buf) -> None:
     """Schemas, channels, statistics and chunk index outside chunks. Those of the summary section
-    are used only when its CRC (in the footer) holds: unlike chunks they carry no CRC of their own."""
+    are used only when its CRC (in the footer) holds: unlike chunks they carry no CRC of their own.
+    Without a footer, records after the data end are taken as the summary and not used."""
     summary_ok = False
     if s.footer and 0 < s.summary_start <= s.footer_at:
         summary_ok = not s.summary_crc or zlib.crc32(buf[s.summary_start:s.footer_at + 25]) == s.summary_crc
         if not summary_ok:
             s.summary_damaged = True
+    # Unverified: everything after the data end (or the footer's summary start if that is lost).
+    start = None if summary_ok else s.data_end if s.data_end is not None else (s.summary_start or None)
     for pos, r in s.top:
-        in_summary = s.footer and s.summary_start and pos >= s.summary_start
-        if in_summary and not summary_ok:
-            continue
+        if start is not None and pos >= start:
+            continue   # an unverified summary record (a flipped byte would go unnoticed)
         if isinstance(r, Schema):
             s.schemas.setdefault(r.id, r)
         elif isinstance(r, Channel):
