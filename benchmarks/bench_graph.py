@@ -29,7 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from kilobot_twin.ros.bag import summary_counts  # noqa: E402
+from kilobot_twin.recording.bag import summary_counts  # noqa: E402
 from kilobot_twin.ros.launcher import FASTDDS_PROFILES, run_twin  # noqa: E402
 
 

@@ -26,7 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from kilobot_twin.ros.bag import summary_counts  # noqa: E402
+from kilobot_twin.recording.bag import summary_counts  # noqa: E402
 from kilobot_twin.ros.robot_bag import TwinBagWriter  # noqa: E402
 
 

@@ -117,17 +117,18 @@ def run(scenario: str = "phototaxis", robots: int = 10, duration: float = 20.0, 
 
 
 def bag_repair(path: str) -> dict:
-    """Recover every complete chunk of a bag whose recorder was killed; rewrite summary and metadata.yaml."""
-    from .ros.bag import repair_bag
+    """Recover every intact chunk of a damaged or unfinalised bag; rewrite summary and metadata.yaml."""
+    from .recording.bag import repair_bag
 
     return repair_bag(path)
 
 
 def bag_info(path: str) -> dict:
-    """Messages per topic and the kilobot_twin metadata of a bag."""
-    from .ros.bag import read_metadata, summary_counts
+    """Messages per topic (those readable) and the kilobot_twin metadata of a bag."""
+    from .recording.bag import BagReader
 
-    return {"counts": summary_counts(path), "metadata": read_metadata(path)}
+    reader = BagReader(path)
+    return {"counts": reader.counts(), "metadata": reader.metadata(), "skipped": reader.note}
 
 
 def view(source: str, out: str | None = None, spawn: bool = False, point: int = 0, run: int = 0) -> dict:
@@ -302,6 +303,35 @@ def _positive_int(text: str) -> int:
 
 
 def main(argv=None) -> int:
+    """Parse, run the verb, report. A bag read in part (damaged) is said in one line after the
+    verb's output (``warning: ...``), or joins the one error line if the verb could not go on."""
+    import warnings
+
+    from .recording.bag import BagDamageWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", BagDamageWarning)
+        code = _main(argv, caught)
+    for w in caught:   # other warnings are shown as Python would
+        if not issubclass(w.category, BagDamageWarning):
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    if code != ConfigError.exit_code and _damage(caught):
+        print(f"kilobot-twin: warning: {_damage(caught)}", file=sys.stderr)
+    return code
+
+
+def _damage(caught) -> str:
+    """The notes of the bags read in part, from the recorded warnings."""
+    from .recording.bag import BagDamageWarning
+
+    notes = []
+    for w in caught:
+        if issubclass(w.category, BagDamageWarning) and str(w.message) not in notes:
+            notes.append(str(w.message))
+    return " | ".join(notes)
+
+
+def _main(argv=None, caught=()) -> int:
     args = _parser().parse_args(argv)
     # On bad input a verb must leave nothing behind: folders it created and left empty go.
     created = CreatedDirs(getattr(args, "out", None))
@@ -359,8 +389,12 @@ def main(argv=None) -> int:
         elif args.verb == "bag":
             if args.bag_verb == "repair":
                 res = bag_repair(args.path)
-                print(f"repaired {args.path}: {res['messages']} messages in {res['chunks']} complete chunk(s) on "
-                      f"{res['channels']} topic(s) recovered" + (f" (stopped at: {res['stopped_at']})" if res["stopped_at"] else ""))
+                if res["intact"]:
+                    print(f"{args.path} is intact ({res['messages']} messages in {res['chunks']} chunk(s)); nothing to repair")
+                else:
+                    print(f"repaired {args.path}: {res['messages']} messages in {res['chunks']} intact chunk(s) on "
+                          f"{res['channels']} topic(s) recovered; damaged file kept as {res['damaged']}\n"
+                          f"skipped: {res['skipped'] or 'nothing'}")
             else:
                 info = bag_info(args.path)
                 for topic, n in sorted(info["counts"].items()):
@@ -382,7 +416,9 @@ def main(argv=None) -> int:
         return 0
     except ConfigError as exc:
         created.remove_empty()
-        print(f"kilobot-twin: error: {exc}", file=sys.stderr)
+        note = _damage(caught)
+        print(f"kilobot-twin: error: {exc}" + (f" [bag read in part: {note}]" if note and note not in str(exc) else ""),
+              file=sys.stderr)
         return ConfigError.exit_code
     except KeyboardInterrupt:
         print("kilobot-twin: interrupted", file=sys.stderr)

@@ -66,7 +66,7 @@ def trial_period_s(ds: Dataset) -> float:
 def import_dataset(dataset: str | Path, out: str | Path) -> dict:
     """Write the bag ``out`` from the dataset folder; returns a summary (messages per topic, trials)."""
     from .analysis import heading_bias_from_track
-    from .ros.bag import summary_counts
+    from .recording.bag import summary_counts
     from .ros.robot_bag import TwinBagWriter
 
     out = Path(out)

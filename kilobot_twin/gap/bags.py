@@ -3,6 +3,7 @@ dataset's trial structure in its metadata, so its tracks can be cut back into tr
 
 The gap workflow needs repeated trials of the same robots; a bag recorded from one twin run is a
 single trial and is refused with a one-line error (record several, or compare datasets).
+Bags are read as plain data (:mod:`kilobot_twin.recording`): no rclpy here.
 """
 
 from __future__ import annotations
@@ -14,6 +15,9 @@ import numpy as np
 
 from .. import measured
 from ..errors import ConfigError
+from ..recording import cdr
+from ..recording.bag import BagReader
+from ..recording.topics import parse_robot_topic
 
 
 def _json(v):
@@ -24,49 +28,44 @@ def _json(v):
 
 
 def dataset_from_bag(bag_dir: str | Path) -> measured.Dataset:
-    from ..ros.bag import read_metadata
-
     bag_dir = Path(bag_dir)
-    records = read_metadata(bag_dir)
-    imp = records.get("kilobot_twin.import")
+    reader = BagReader(bag_dir)
+    imp = reader.metadata().get("kilobot_twin.import")
     if imp is None:
         raise ConfigError(str(bag_dir), "the bag has no trial structure (it was not made by kilobot-twin import)",
                           "the gap workflow needs repeated trials: give the measured dataset folder or an imported bag")
     imp = {k: _json(v) for k, v in imp.items()}
-    meta = dict(imp["dataset_meta"])
-    kind = meta["kind"]
+    try:
+        meta = dict(imp["dataset_meta"])
+        kind = meta["kind"]
+        trials = [(int(tr["trial"]), int(tr["start_ns"]), int(tr["end_ns"])) for tr in imp["trials"]]
+    except (KeyError, TypeError, ValueError):
+        raise ConfigError(str(reader.file), "the kilobot_twin.import metadata record is damaged",
+                          "import the measured dataset again") from None
     if kind == "light_sweep":
         raise ConfigError(str(bag_dir), "light-sweep bags are not read back yet", "give the measured dataset folder")
     # Read the samples themselves (header stamps, exact values) rather than a resampled view.
-    from geometry_msgs.msg import PoseStamped
-    from rclpy.serialization import deserialize_message
-    from std_msgs.msg import ColorRGBA
-
-    from ..ros import convert
-    from ..viewer.bag_source import read_bag_messages
-
-    suffix = "/pose" if kind == "motion" else "/led"
+    suffix = "pose" if kind == "motion" else "led"
     series: dict[int, list] = {}
-    for topic, _type, log_ns, _pub, data in read_bag_messages(bag_dir):
-        if not (topic.startswith("/kilobot_") and topic.endswith(suffix)):
+    for topic, _type, log_ns, _pub, data in reader.messages():
+        rt = parse_robot_topic(topic)
+        if rt is None or rt[1] != suffix:
             continue
-        rid = int(topic.split("/")[1].split("_")[1])
         if kind == "motion":
-            msg = deserialize_message(data, PoseStamped)
-            x, y, _ = convert.pose_to_xytheta(msg)
-            series.setdefault(rid, []).append((convert.time_to_ns(msg.header.stamp), x, y))
+            stamp_ns, x, y, _qz, _qw = cdr.pose_stamped(data)
+            series.setdefault(rt[0], []).append((stamp_ns, x, y))
         else:
-            led = convert.led_from_color(deserialize_message(data, ColorRGBA))
+            led = cdr.led_from_rgba(*cdr.color_rgba(data))
             if led <= 1:
-                series.setdefault(rid, []).append((log_ns, float(led), 0.0))
+                series.setdefault(rt[0], []).append((log_ns, float(led), 0.0))
     tracks = {}
-    for tr in imp["trials"]:
+    for trial, start_ns, end_ns in trials:
         for rid, rows in series.items():
             a = np.array(rows)
-            sel = (a[:, 0] >= tr["start_ns"]) & (a[:, 0] <= tr["end_ns"])
+            sel = (a[:, 0] >= start_ns) & (a[:, 0] <= end_ns)
             if not sel.any():
                 continue
-            t_rel = (a[sel, 0] - tr["start_ns"]) / 1e9
+            t_rel = (a[sel, 0] - start_ns) / 1e9
             values = {"x_m": a[sel, 1], "y_m": a[sel, 2]} if kind == "motion" else {"led": a[sel, 1]}
-            tracks[(int(tr["trial"]), rid)] = measured.Track(t_rel, values)
+            tracks[(trial, rid)] = measured.Track(t_rel, values)
     return measured.Dataset(bag_dir, meta, tracks)

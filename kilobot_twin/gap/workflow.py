@@ -469,7 +469,7 @@ def _load_data(path: str) -> measured.Dataset:
     p = Path(path)
     if (p / "meta.yaml").is_file():
         return measured.load(p)
-    if (p / "metadata.yaml").is_file():
+    if (p / "metadata.yaml").is_file() or (p / f"{p.name}_0.mcap").is_file():  # an unfinalised bag too
         from .bags import dataset_from_bag
 
         return dataset_from_bag(p)

@@ -66,37 +66,25 @@ def topic_selected(topic: str, patterns: list[str]) -> bool:
 
 
 def load_bag(bag_dir: str | Path, patterns: list[str] | None = None) -> LoadedBag:
-    """Read every (selected) message of a bag into memory."""
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
+    """Read every (selected) message of a bag into memory (what is intact of a damaged bag)."""
+    from ..recording.bag import BagReader
 
-    from ..ros.bag import mcap_path
-
-    path = mcap_path(bag_dir)
-    if not path.is_file():
-        raise ConfigError(str(bag_dir), f"no {path.name} in the bag directory", "give bags/NAME written by run or import")
+    reader = BagReader(bag_dir)
     patterns = patterns or []
+    qos = {ch["topic"]: ch["qos"] for ch in reader.channels}
     topics: list[dict] = []
-    index: dict[int, int] = {}
+    index: dict[str, int] = {}
     log_ns, chan, data = [], [], []
-    try:
-        with open(path, "rb") as f:
-            for schema, ch, msg in make_reader(f).iter_messages(log_time_order=True):
-                if ch.id not in index:
-                    if not topic_selected(ch.topic, patterns):
-                        index[ch.id] = -1
-                    else:
-                        index[ch.id] = len(topics)
-                        topics.append({"name": ch.topic, "type": schema.name if schema else "",
-                                       "qos": ch.metadata.get("offered_qos_profiles", "")})
-                k = index[ch.id]
-                if k < 0:
-                    continue
-                log_ns.append(msg.log_time)
-                chan.append(k)
-                data.append(bytes(msg.data))
-    except McapError as exc:
-        raise ConfigError(str(path), f"unreadable bag ({exc})", f"try `kilobot-twin bag repair {bag_dir}`") from None
+    for m in reader.messages():
+        k = index.get(m.topic)
+        if k is None:
+            k = index[m.topic] = len(topics) if topic_selected(m.topic, patterns) else -1
+            if k >= 0:
+                topics.append({"name": m.topic, "type": m.type, "qos": qos.get(m.topic, "")})
+        if k >= 0:
+            log_ns.append(m.log_time_ns)
+            chan.append(k)
+            data.append(m.data)
     if not data:
         raise ConfigError("--topics" if patterns else str(bag_dir), "no messages to replay",
                           "check the topic names with `kilobot-twin bag info`")

@@ -12,19 +12,9 @@ from pathlib import Path
 
 from rclpy.serialization import serialize_message
 
+from ..recording.bag import BagWriter
+from ..recording.topics import DATA_QOS, LATCHED_QOS, ROBOT_TYPES as TYPES, robot_namespace
 from . import convert
-from .bag import BagWriter, qos_yaml
-
-DATA_QOS = qos_yaml(1, 2, 1000)     # reliable, volatile
-LATCHED_QOS = qos_yaml(1, 1, 1)     # reliable, transient-local
-
-TYPES = {
-    "pose": "geometry_msgs/msg/PoseStamped",
-    "light": "sensor_msgs/msg/Illuminance",
-    "led": "std_msgs/msg/ColorRGBA",
-    "clock": "sensor_msgs/msg/TimeReference",
-    "traits": "std_msgs/msg/String",
-}
 
 
 class TwinBagWriter:
@@ -52,7 +42,7 @@ class TwinBagWriter:
         s = convert.RobotSample(robot_id, 0, int(stamp_ns), x_m or 0.0, y_m or 0.0, theta_rad or 0.0,
                                 reading or 0.0, 2 if led is None else int(led), 0.0, convert.NS_PER_S)
         m.fill(s)
-        ns = f"/kilobot_{int(robot_id)}"
+        ns = robot_namespace(robot_id)
         if reading is not None and math.isfinite(reading):
             self.bag.write(self.channel(f"{ns}/light", TYPES["light"]), serialize_message(m.light), log_ns)
         if led is not None:

@@ -11,31 +11,14 @@ recorded ``/clock`` time of their log time.
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ConfigError
+from ..recording.bag import BagReader
+from ..recording.topics import parse_robot_topic
 from .swarm_data import SwarmRecording
-
-ROBOT_TOPIC = re.compile(r"^/kilobot_(\d+)/(pose|light|led|clock|traits)$")
-
-
-def read_bag_messages(bag_dir: str | Path, topics=None):
-    """Yield (topic, type name, log_time_ns, publish_time_ns, cdr bytes) in log-time order."""
-    from mcap.reader import make_reader
-
-    from ..ros.bag import mcap_path
-
-    path = mcap_path(bag_dir)
-    if not path.is_file():
-        raise ConfigError(str(bag_dir), f"no {path.name} in the bag directory",
-                          "give a bag directory written by `kilobot-twin run` or `import`")
-    with open(path, "rb") as f:
-        reader = make_reader(f)
-        for schema, channel, msg in reader.iter_messages(topics=topics, log_time_order=True):
-            yield channel.topic, schema.name if schema else "", msg.log_time, msg.publish_time, msg.data
 
 
 def from_bag(bag_dir: str | Path) -> SwarmRecording:
@@ -59,10 +42,11 @@ def from_bag(bag_dir: str | Path) -> SwarmRecording:
     clock_log, clock_ns = [], []
     analysis: dict[str, list] = {}
     world_doc, field_img = None, None
-    for topic, _type, log_ns, _pub, data in read_bag_messages(bag_dir):
-        m = ROBOT_TOPIC.match(topic)
+    reader = BagReader(bag_dir)
+    for topic, _type, log_ns, _pub, data in reader.messages():
+        m = parse_robot_topic(topic)
         if m:
-            rid, kind = int(m.group(1)), m.group(2)
+            rid, kind = m
             if kind == "pose":
                 msg = deserialize_message(data, PoseStamped)
                 x, y, th = convert.pose_to_xytheta(msg)
@@ -98,7 +82,7 @@ def from_bag(bag_dir: str | Path) -> SwarmRecording:
         return cn[j]
 
     if not (pose or light or (led and len(cl))):
-        raise ConfigError(str(bag_dir), "no /kilobot_<id>/pose, light or led messages",
+        raise ConfigError(str(reader.file), "no /kilobot_<id>/pose, light or led messages",
                           "give a bag of a twin run or an imported dataset")
     ids = np.array(sorted(set(pose) | set(light) | (set(led) if len(cl) else set())), dtype=np.int64)
     stamps = {}
@@ -162,19 +146,15 @@ def from_bag(bag_dir: str | Path) -> SwarmRecording:
                 t = (a[:, 0] - a[0, 0]) / 1e9
             recorded[name] = (t, a[:, 1])
 
-    from ..ros.bag import read_metadata
-
-    try:
-        meta = read_metadata(bag_dir)
-    except Exception:  # noqa: BLE001 - metadata is shown when present, never required
-        meta = {}
+    meta = reader.metadata()
     return SwarmRecording(
         name=bag_dir.name, robot_ids=ids, t_s=np.arange(T) * dt_ns / 1e9, x=x, y=y, theta=th, led=lv, reading=rd,
         ticks=tk, heading_bias=bias, traits={int(k): v for k, v in traits.items()},
         light_center=tuple(scenario.light.center) if scenario is not None else _center_from_meta(meta),
         light_field=field_img, field_extent=extent, recorded_metrics=recorded,
         period_ticks=_period(scenario) if scenario is not None else None,
-        meta={"source": str(bag_dir), "t0_ns": t0, "dt_ns": dt_ns, **{k: v for k, v in meta.items()}})
+        meta={"source": str(bag_dir), "t0_ns": t0, "dt_ns": dt_ns, **({"damage": reader.note} if reader.note else {}),
+              **{k: v for k, v in meta.items()}})
 
 
 def _center_from_meta(meta: dict):

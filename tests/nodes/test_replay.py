@@ -10,7 +10,7 @@ from kilobot_twin.cli import main as cli_main
 from kilobot_twin.nodes.recorder import RecorderNode
 from kilobot_twin.nodes.replay import ReplayNode, load_bag, qos_from_yaml, topic_selected
 from kilobot_twin.ros.robot_bag import DATA_QOS, LATCHED_QOS, TwinBagWriter
-from kilobot_twin.viewer.bag_source import read_bag_messages
+from kilobot_twin.recording.bag import BagReader
 
 from ..ros.test_bag import rerun_check, rosbags_messages
 from .graph import Graph, overrides
@@ -34,7 +34,7 @@ def fixture_bag(path, robots=3, steps=20, dt_ns=50_000_000):
 
 def by_topic(bag):
     out = {}
-    for topic, type_name, _log, _pub, data in read_bag_messages(bag):
+    for topic, type_name, _log, _pub, data in BagReader(bag).messages():
         out.setdefault(topic, (type_name, []))[1].append(bytes(data))
     return out
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from kilobot_twin.core import sim
-from kilobot_twin.ros.bag import mcap_path, read_metadata, summary_counts
+from kilobot_twin.recording.bag import mcap_path, read_metadata, summary_counts
 from kilobot_twin.ros.convert import CLOUD_DTYPE
 from kilobot_twin.ros.launcher import run_twin
 from kilobot_twin.ros.scenarios import load_swarm_traits, named_scenario
