@@ -14,7 +14,7 @@ serialise round trip). Transient-local publishers (traits, the world's scenario 
 field) are subscribed transient-local so that their one message is recorded even if it was
 published before the recorder joined. MCAP metadata record ``kilobot_twin`` holds the package
 version, seed, run, mode, the scenario and every robot's traits; ``metadata.yaml`` is written
-on shutdown (Ctrl-C / SIGTERM). See :func:`kilobot_twin.ros.bag.repair_bag` for a recorder
+on shutdown (Ctrl-C / SIGTERM). See :func:`kilobot_twin.recording.bag.repair_bag` for a recorder
 that was killed.
 """
 
@@ -35,7 +35,8 @@ from .. import __version__
 from ..outputs import check_out_dir
 from ..errors import ConfigError
 from ..ros import params, qos
-from ..ros.bag import DEFAULT_CHUNK_BYTES, BagWriter, qos_yaml
+from ..recording.bag import DEFAULT_CHUNK_BYTES, BagWriter
+from ..recording.topics import qos_yaml
 from ..ros.executors import run_node
 
 PROG = "kilobot-twin recorder"

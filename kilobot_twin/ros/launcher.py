@@ -253,7 +253,7 @@ def _stop(c: Child, timeout_s: float) -> None:
 
 
 def _fill_report(report: RunReport, swarm_stats: list[Path], world_stats: Path, dt_s: float) -> None:
-    from .bag import summary_counts
+    from ..recording.bag import summary_counts
 
     try:
         report.counts = summary_counts(report.bag)

@@ -5,7 +5,8 @@ Robot samples are placed on a grid of the robots' own ``header.stamp`` (slot
 imported (jittered) bags line up; a robot without a sample in a slot has NaN there (a gap).
 ``led`` carries no stamp: an LED message belongs to the first pose the same robot logged at or
 after it (robots publish light, led, clock, then pose). ``/analysis/*`` values are put on the
-recorded ``/clock`` time of their log time.
+simulated time the analysis node published with them (``/analysis/time_s``), or for older bags on
+the recorded ``/clock`` time of their log time; undefined (NaN) values are left out.
 """
 
 from __future__ import annotations
@@ -136,15 +137,20 @@ def from_bag(bag_dir: str | Path) -> SwarmRecording:
     bias = np.array([float(traits.get(int(r), {}).get("traits", {}).get("heading_bias", np.nan)) for r in ids])
 
     recorded = {}
-    if analysis:
-        for name, vals in analysis.items():
-            a = np.array(vals, dtype=np.float64)
-            if len(cl):
-                j = np.clip(np.searchsorted(cl, a[:, 0], side="right") - 1, 0, len(cl) - 1)
-                t = (cn[j] - t0) / 1e9
-            else:
-                t = (a[:, 0] - a[0, 0]) / 1e9
-            recorded[name] = (t, a[:, 1])
+    times = analysis.pop("time_s", None)
+    for name, vals in analysis.items():
+        a = np.array(vals, dtype=np.float64)
+        if times is not None and len(times) == len(a):
+            # The analysis node's k-th value of every metric belongs to its k-th time_s (simulated time).
+            t = np.array([v for _log, v in times]) - t0 / 1e9
+        elif len(cl):
+            j = np.clip(np.searchsorted(cl, a[:, 0], side="right") - 1, 0, len(cl) - 1)
+            t = (cn[j] - t0) / 1e9
+        else:
+            t = (a[:, 0] - a[0, 0]) / 1e9
+        keep = np.isfinite(a[:, 1])  # NaN: undefined at that time (e.g. no blink program)
+        if keep.any():
+            recorded[name] = (t[keep], a[keep, 1])
 
     meta = reader.metadata()
     return SwarmRecording(

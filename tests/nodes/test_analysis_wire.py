@@ -102,3 +102,11 @@ def test_live_metrics_equal_a_recomputation_from_the_robot_topics(kind, tmp_path
         assert got["covered_area_m2"][-1] > got["covered_area_m2"][0]
     else:
         assert 0 < max(got["led_red_fraction"]) and 0 < max(got["led_blue_fraction"])
+    # The viewer puts each recorded value at its simulated time, without the undefined ones.
+    from kilobot_twin.viewer.bag_source import from_bag
+
+    rec = from_bag(out)
+    t, v = rec.recorded_metrics["mean_distance_to_light_m"]
+    np.testing.assert_allclose(t, [s / 1e9 for s in stamps], atol=1e-9)
+    np.testing.assert_array_equal(v, got["mean_distance_to_light_m"])
+    assert ("order_parameter" in rec.recorded_metrics) == (kind == "blink") and "time_s" not in rec.recorded_metrics

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from kilobot_twin.ros.bag import read_metadata
+from kilobot_twin.recording.bag import read_metadata
 
 from ..ros.test_bag import rosbags_messages
 
