@@ -32,7 +32,7 @@ def from_bag(bag_dir: str | Path) -> SwarmRecording:
     from ..core.constants import TICK_HZ
     from ..ros import convert
     from ..ros.scenarios import parse_world_document, scenario_from_document
-    from .swarm_data import _period
+    from .swarm_data import blink_period_ticks
 
     bag_dir = Path(bag_dir)
     pose: dict[int, list] = {}     # id -> [(stamp, log, x, y, theta)]
@@ -158,7 +158,7 @@ def from_bag(bag_dir: str | Path) -> SwarmRecording:
         ticks=tk, heading_bias=bias, traits={int(k): v for k, v in traits.items()},
         light_center=tuple(scenario.light.center) if scenario is not None else _center_from_meta(meta),
         light_field=field_img, field_extent=extent, recorded_metrics=recorded,
-        period_ticks=_period(scenario) if scenario is not None else None,
+        period_ticks=blink_period_ticks(scenario) if scenario is not None else None,
         meta={"source": str(bag_dir), "t0_ns": t0, "dt_ns": dt_ns, **({"damage": reader.note} if reader.note else {}),
               **{k: v for k, v in meta.items()}})
 

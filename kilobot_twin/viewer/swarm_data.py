@@ -180,7 +180,7 @@ def from_results(path: str | Path, point: int = 0, run: int = 0) -> SwarmRecordi
         name=path.stem, robot_ids=np.asarray(ids), t_s=np.asarray(t_s, float), x=arrays["x"], y=arrays["y"],
         theta=arrays.get("theta", nan), led=arrays.get("led", nan), reading=arrays.get("reading", nan),
         heading_bias=bias, traits=traits, light_center=tuple(scenario.light.center), light_field=fld, field_extent=extent,
-        period_ticks=_period(scenario), meta={"source": str(path), "point": meta["points"][point], "run": run,
+        period_ticks=blink_period_ticks(scenario), meta={"source": str(path), "point": meta["points"][point], "run": run,
                                               "seed": meta.get("seed")})
 
 
@@ -195,7 +195,8 @@ def _deep_point(scenario: dict, point: dict) -> dict:
     return sc
 
 
-def _period(scenario) -> float | None:
+def blink_period_ticks(scenario) -> float | None:
+    """Blink period in ticks of a blink scenario (None otherwise)."""
     half = getattr(scenario.behavior, "half_period_ticks", None)
     return 2.0 * half if half else None
 
