@@ -54,9 +54,3 @@ def kuramoto_correction(ticks, adjacency, coupling_per_s: float, period_ticks: f
     count = adjacency.sum(axis=-1)
     mean = np.where(count > 0, (diff * adjacency).sum(axis=-1) / np.maximum(count, 1), 0.0)
     return coupling_per_s * dt_s * mean * (period_ticks / (2 * np.pi))
-
-
-def order_parameter(ticks, period_ticks: float):
-    """Kuramoto order parameter ``|mean exp(i phi)|`` over the last axis (robots)."""
-    phi = (2 * np.pi / period_ticks) * np.asarray(ticks)
-    return np.abs(np.exp(1j * phi).mean(axis=-1))

@@ -219,3 +219,13 @@ def sense(intensity, gain, offset, noise_sd, keys, counter: int, model: SensorMo
         z, _ = rng.normal_pair(keys, counter)
         y = y + z * (noise_sd / np.sqrt(model.samples))
     return np.floor(np.clip(y, 0.0, model.ceiling))
+
+
+def raster(field, arena, pixels: int, t_s: float = 0.0):
+    """``field``'s intensity on a ``pixels`` x ``pixels`` raster over ``arena`` (row 0 = top = +y,
+    as in a picture; cell centres) and the raster's extent (x_min, x_max, y_min, y_max) in m."""
+    xs = (np.arange(pixels) + 0.5) / pixels * arena.width_m - arena.width_m / 2
+    ys = arena.height_m / 2 - (np.arange(pixels) + 0.5) / pixels * arena.height_m
+    X, Y = np.meshgrid(xs, ys)
+    extent = (-arena.width_m / 2, arena.width_m / 2, -arena.height_m / 2, arena.height_m / 2)
+    return np.asarray(field.intensity(X, Y, t_s), dtype=np.float64), extent

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import clocks, kinematics, light, rng
+from . import clocks, kinematics, light, metrics, rng
 from .behaviors import Blink
 from .constants import LED_OFF
 from .scenario import Scenario
@@ -253,7 +253,7 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
     needs_light = scenario.behavior.needs_light
     order = np.empty((R, n + 1)) if is_blink else None
     if is_blink:
-        order[:, 0] = clocks.order_parameter(st.ticks, 2 * scenario.behavior.half_period_ticks)
+        order[:, 0] = metrics.order_parameter(st.ticks, 2 * scenario.behavior.half_period_ticks)
     chunk = max(1, n // 100)
     done = 0
     for k in range(n):
@@ -271,7 +271,7 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
         if rec is not None and (k + 1) % record_every == 0:
             _record(rec, st, (k + 1) // record_every)
         if is_blink:
-            order[:, k + 1] = clocks.order_parameter(st.ticks, 2 * scenario.behavior.half_period_ticks)
+            order[:, k + 1] = metrics.order_parameter(st.ticks, 2 * scenario.behavior.half_period_ticks)
         if progress is not None and (k + 1) % chunk == 0:
             progress(k + 1 - done)
             done = k + 1

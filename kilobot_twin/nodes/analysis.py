@@ -35,8 +35,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2, TimeReference
 from std_msgs.msg import ColorRGBA, Float64, String, UInt32
 
-from ..core import clocks
-from ..core.constants import LED_BLUE, LED_RED
+from ..core.metrics import METRICS
+from ..core.metrics import swarm_metrics as core_metrics
 from ..core.scenario import Scenario
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
@@ -44,24 +44,14 @@ from ..ros.scenarios import parse_world_document, scenario_from_document
 
 PROG = "kilobot-twin analysis"
 ROBOT_TOPIC = re.compile(r"^(?:.*/)?kilobot_(\d+)/(pose|led|clock)$")
-METRICS = ("led_red_fraction", "led_blue_fraction", "order_parameter", "mean_distance_to_light_m", "covered_area_m2")
 
 
 def swarm_metrics(x, y, led, ticks, scenario: Scenario, covered_cells: int) -> dict:
-    """The metrics of one snapshot (arrays over the robots heard from; NaN where undefined)."""
-    x, y, led, ticks = (np.asarray(a, dtype=np.float64) for a in (x, y, led, ticks))
-    out = dict.fromkeys(METRICS, float("nan"))
-    if led.size:
-        out["led_red_fraction"] = float(np.mean(led == LED_RED))
-        out["led_blue_fraction"] = float(np.mean(led == LED_BLUE))
-    if x.size:
-        cx, cy = scenario.light.center
-        out["mean_distance_to_light_m"] = float(np.mean(np.hypot(x - cx, y - cy)))
+    """The metrics of one snapshot (lists over the robots heard from; NaN where undefined)."""
     half = getattr(scenario.behavior, "half_period_ticks", None)
-    if half and ticks.size:
-        out["order_parameter"] = float(clocks.order_parameter(ticks, 2 * half))
-    out["covered_area_m2"] = covered_cells * scenario.arena.coverage_cell_m ** 2
-    return out
+    m = core_metrics(x, y, led, ticks, scenario.light.center, 2 * half if half else None,
+                     covered_cells * scenario.arena.coverage_cell_m ** 2)
+    return {k: float(v) for k, v in m.items()}
 
 
 class AnalysisNode(Node):

@@ -42,6 +42,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, PointCloud2
 from std_msgs.msg import String, UInt64
 
+from ..core.light import raster as light_raster
 from ..core.scenario import Scenario
 from ..ros import convert, params, qos
 from ..ros.executors import run_node, spin_node
@@ -126,12 +127,7 @@ class WorldNode(Node):
         return sc
 
     def _field_raster(self, t_s: float) -> np.ndarray:
-        a = self.scenario.arena
-        n = self.field_pixels
-        xs = (np.arange(n) + 0.5) / n * a.width_m - a.width_m / 2
-        ys = a.height_m / 2 - (np.arange(n) + 0.5) / n * a.height_m
-        X, Y = np.meshgrid(xs, ys)
-        return np.asarray(self.scenario.light.intensity(X, Y, t_s), dtype=np.float64)
+        return light_raster(self.scenario.light, self.scenario.arena, self.field_pixels, t_s)[0]
 
     def _maybe_update_field(self, t_s: float) -> None:
         if t_s + 1e-12 < self._next_field_s:

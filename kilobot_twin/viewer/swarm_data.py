@@ -6,16 +6,14 @@ them. No rclpy, mcap or rerun import here.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..core.constants import LED_BLUE, LED_OFF, LED_RED
-
-#: Metrics computed from the robots' arrays (names as the analysis node publishes them).
-METRICS = ("led_red_fraction", "led_blue_fraction", "order_parameter", "mean_distance_to_light_m")
+from ..core.light import raster
+from ..core.metrics import METRICS, swarm_metrics
 
 
 @dataclass
@@ -65,27 +63,15 @@ class SwarmRecording:
         return len(self.t_s)
 
     def metrics(self) -> dict[str, np.ndarray]:
-        """Swarm metrics per sample, (T,) each, over the robots with a value at that sample (NaN if none).
-
-        red / blue fraction of the robots whose LED is known; Kuramoto order parameter of
-        the blink phases ``2 pi ticks / period`` (blink scenarios); mean distance to the light.
-        """
-        out: dict[str, np.ndarray] = {}
-        known = np.isfinite(self.led)
-        n_known = known.sum(axis=0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            if known.any():
-                out["led_red_fraction"] = np.where(n_known > 0, (self.led == LED_RED).sum(axis=0) / n_known, np.nan)
-                out["led_blue_fraction"] = np.where(n_known > 0, (self.led == LED_BLUE).sum(axis=0) / n_known, np.nan)
-            if self.light_center is not None:
-                d = np.hypot(self.x - self.light_center[0], self.y - self.light_center[1])
-                out["mean_distance_to_light_m"] = _nanmean0(d)
-            if self.period_ticks and self.ticks is not None and np.isfinite(self.ticks).any():
-                z = np.exp(1j * 2 * np.pi * self.ticks / self.period_ticks)
-                ok = np.isfinite(self.ticks)
-                s = np.where(ok, z, 0).sum(axis=0)
-                out["order_parameter"] = np.where(ok.sum(axis=0) > 0, np.abs(s) / ok.sum(axis=0), np.nan)
-        return out
+        """Swarm metrics per sample, (T,) each, over the robots with a value at that sample (NaN if
+        none): :func:`kilobot_twin.core.metrics.swarm_metrics` without the coverage; the LED
+        fractions only when LEDs were recorded, the order parameter only for blink scenarios."""
+        ticks = self.ticks if self.ticks is not None else np.full_like(self.x, np.nan)
+        m = swarm_metrics(self.x.T, self.y.T, self.led.T, ticks.T,
+                          self.light_center if self.light_center is not None else (np.nan, np.nan),
+                          self.period_ticks if np.isfinite(ticks).any() else None)
+        keep = [k for k in METRICS if k != "covered_area_m2" and np.isfinite(m[k]).any()]
+        return {k: m[k] for k in keep}
 
     def bias_for_colour(self) -> np.ndarray:
         """Heading bias per robot for the trajectory colour: the known trait, else estimated from motion."""
@@ -98,12 +84,6 @@ class SwarmRecording:
             bias = bias.copy()
             bias[missing] = est
         return bias
-
-
-def _nanmean0(a: np.ndarray) -> np.ndarray:
-    ok = np.isfinite(a)
-    n = ok.sum(axis=0)
-    return np.where(n > 0, np.where(ok, a, 0.0).sum(axis=0) / np.maximum(n, 1), np.nan)
 
 
 # --- colours -------------------------------------------------------------------------------------
@@ -141,7 +121,7 @@ def led_colours(led: np.ndarray) -> np.ndarray:
 def from_results(path: str | Path, point: int = 0, run: int = 0) -> SwarmRecording:
     """One (grid point, run) of a batch experiment with recorded trajectories (``record_every > 0``)."""
     from ..batch.campaign import load_results
-    from ..core.scenario import scenario_from_dict
+    from ..core.scenario import scenario_from_dict, with_overrides
     from ..errors import ConfigError
 
     path = Path(path)
@@ -168,7 +148,7 @@ def from_results(path: str | Path, point: int = 0, run: int = 0) -> SwarmRecordi
             break
     else:
         raise ConfigError("--run", f"run {run} is not in {path} (runs 0..{meta['runs'] - 1})", "pick a recorded run")
-    scenario = scenario_from_dict(_deep_point(meta["scenario"], meta["points"][point]))
+    scenario = with_overrides(scenario_from_dict(meta["scenario"]), meta["points"][point])
     swarm = res["swarm"]
     traits = {int(i): {k: float(v[j]) for k, v in swarm.values.items()} for j, i in enumerate(swarm.ids)}
     order = {int(i): j for j, i in enumerate(swarm.ids)}
@@ -184,17 +164,6 @@ def from_results(path: str | Path, point: int = 0, run: int = 0) -> SwarmRecordi
                                               "seed": meta.get("seed")})
 
 
-def _deep_point(scenario: dict, point: dict) -> dict:
-    sc = json.loads(json.dumps(scenario))
-    for dotted, value in point.items():
-        node = sc
-        parts = dotted.split(".")
-        for p in parts[:-1]:
-            node = node.setdefault(p, {})
-        node[parts[-1]] = value
-    return sc
-
-
 def blink_period_ticks(scenario) -> float | None:
     """Blink period in ticks of a blink scenario (None otherwise)."""
     half = getattr(scenario.behavior, "half_period_ticks", None)
@@ -203,9 +172,5 @@ def blink_period_ticks(scenario) -> float | None:
 
 def field_raster(scenario, pixels: int = 128, t_s: float = 0.0):
     """The scenario's light field on the arena (as the world node rasterises it) and its extent."""
-    a = scenario.arena
-    xs = (np.arange(pixels) + 0.5) / pixels * a.width_m - a.width_m / 2
-    ys = a.height_m / 2 - (np.arange(pixels) + 0.5) / pixels * a.height_m
-    X, Y = np.meshgrid(xs, ys)
-    img = np.asarray(scenario.light.intensity(X, Y, t_s), dtype=np.float32)
-    return img, (-a.width_m / 2, a.width_m / 2, -a.height_m / 2, a.height_m / 2)
+    img, extent = raster(scenario.light, scenario.arena, pixels, t_s)
+    return img.astype(np.float32), extent
