@@ -82,7 +82,7 @@ def plot_straight(o: Outcome, out_dir):
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
-    from ..plots import pyplot, bias_cmap, save
+    from ..plots import pyplot, bias_cmap
 
     plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.6), sharex=True, sharey=True)

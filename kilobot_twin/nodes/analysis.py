@@ -27,7 +27,6 @@ nothing is published before every one of them has been heard from (several swarm
 from __future__ import annotations
 
 import json
-import re
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped
@@ -38,12 +37,12 @@ from std_msgs.msg import ColorRGBA, Float64, String, UInt32
 from ..core.metrics import METRICS
 from ..core.metrics import swarm_metrics as core_metrics
 from ..core.scenario import Scenario
+from ..recording import topics
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
 from ..ros.scenarios import parse_world_document, scenario_from_document
 
 PROG = "kilobot-twin analysis"
-ROBOT_TOPIC = re.compile(r"^(?:.*/)?kilobot_(\d+)/(pose|led|clock)$")
 
 
 def swarm_metrics(x, y, led, ticks, scenario: Scenario, covered_cells: int) -> dict:
@@ -88,17 +87,17 @@ class AnalysisNode(Node):
         for topic, _ in self.get_topic_names_and_types():
             if topic in self.subscribed:
                 continue
-            m = convert.SWARM_MEMBERS_TOPIC.match(topic)
+            m = topics.SWARM_MEMBERS_TOPIC.match(topic)
             if m:
                 self.subscribed.add(topic)
                 self.create_subscription(String, topic, lambda msg, base=m.group(1): self._on_members(base, msg),
                                          qos.LATCHED)
                 continue
-            m = ROBOT_TOPIC.match(topic)
-            if not m or int(m.group(1)) in self.covered:
+            parsed = topics.parse_robot_topic(topic)
+            if not parsed or parsed[1] not in ("pose", "led", "clock") or parsed[0] in self.covered:
                 continue
             self.subscribed.add(topic)
-            rid, kind = int(m.group(1)), m.group(2)
+            rid, kind = parsed
             # Raw subscriptions: the few numbers needed are read from the CDR bytes directly
             # (no message object per sample; a swarm sends thousands per second).
             if kind == "pose":
@@ -119,7 +118,7 @@ class AnalysisNode(Node):
             for sub in self._robot_subs.pop(rid, []):
                 self.destroy_subscription(sub)
         self.covered |= ids
-        self.create_subscription(PointCloud2, convert.swarm_cloud_topic(base), self._on_cloud, qos.DATA, raw=True)
+        self.create_subscription(PointCloud2, topics.swarm_cloud_topic(base), self._on_cloud, qos.DATA, raw=True)
 
     def _on_cloud(self, data: bytes) -> None:
         stamp, pts = convert.robot_cloud_from_cdr(data)

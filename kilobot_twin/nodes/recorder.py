@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import importlib
 import json
-import re
 import time
 from datetime import datetime, timezone
 
@@ -36,12 +35,12 @@ from ..outputs import check_out_dir
 from ..errors import ConfigError
 from ..ros import params, qos
 from ..recording.bag import DEFAULT_CHUNK_BYTES, BagWriter
-from ..recording.topics import qos_yaml
+from ..recording.topics import (BEST_EFFORT, RELIABLE, ROBOT_DATA, TRANSIENT_LOCAL, VOLATILE, parse_robot_topic,
+                                 qos_yaml)
 from ..ros.executors import run_node
 
 PROG = "kilobot-twin recorder"
 #: Robot data topics: what the recorder acknowledges on ``~/recorded`` (the world's back-pressure).
-ROBOT_DATA = re.compile(r"^/kilobot_\d+/(pose|light|led|clock)$")
 
 
 def message_class(type_name: str):
@@ -105,7 +104,8 @@ class RecorderNode(Node):
                                  durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
             self.channels[topic] = None
             self.joined.append((topic, time.time_ns()))
-            qos = qos_yaml(2 if best_effort else 1, 1 if latched else 2, profile.depth)
+            qos = qos_yaml(BEST_EFFORT if best_effort else RELIABLE, TRANSIENT_LOCAL if latched else VOLATILE,
+                           profile.depth)
             self.create_subscription(cls, topic, self._callback(topic, type_name, qos), profile, raw=True)
 
     def _writer(self) -> BagWriter:
@@ -131,7 +131,8 @@ class RecorderNode(Node):
                 cid = self.channels[topic] = bag.add_topic(topic, type_name, qos)
             bag.write(cid, data, time_ns())
 
-        if ROBOT_DATA.match(topic):
+        parsed = parse_robot_topic(topic)
+        if parsed and parsed[1] in ROBOT_DATA:
             ack_every = self.ack_every
 
             def record_robot(data: bytes) -> None:

@@ -42,6 +42,7 @@ from std_msgs.msg import ColorRGBA, String
 
 from ..core.traits import TRAIT_NAMES, SwarmTraits, traits_from_mapping
 from ..errors import ConfigError
+from ..recording.topics import robot_id_of_namespace
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
 from ..ros.model import RobotModel, SwarmModel
@@ -49,7 +50,6 @@ from ..ros.scenarios import clock_period_from_document, parse_world_document, sc
 from ..ros.stepping import StepRule
 
 PROG = "kilobot-twin robot"
-NAMESPACE = re.compile(r"/kilobot_(\d+)")
 
 
 class WrongNamespace(Exception):
@@ -83,10 +83,10 @@ class RobotNode(Node):
                          enable_rosout=not lean, use_global_arguments=use_global_arguments)
         ns = self.get_namespace()
         remapped = ns != "/" + asked_ns.lstrip("/")  # a namespace given by launch / -r __ns:=
-        from_ns = NAMESPACE.fullmatch(ns)
-        default_id = robot_id if robot_id is not None else int(from_ns.group(1)) if from_ns else 0
+        from_ns = robot_id_of_namespace(ns)
+        default_id = robot_id if robot_id is not None else from_ns if from_ns is not None else 0
         self.robot_id = params.integer(self, "robot_id", default_id, minimum=0)
-        if from_ns and int(from_ns.group(1)) != self.robot_id:
+        if from_ns is not None and from_ns != self.robot_id:
             if not remapped:
                 self.destroy_node()
                 raise WrongNamespace(self.robot_id)

@@ -41,6 +41,7 @@ from std_msgs.msg import String
 from ..core import behaviors as B
 from ..core.traits import TRAIT_NAMES
 from ..errors import ConfigError
+from ..recording import topics
 from ..ros import convert, params, qos
 from ..ros.executors import make_executor, run_node, spin
 from ..ros.model import SwarmModel
@@ -126,7 +127,7 @@ class SwarmNode(Node):
             self.model = SwarmModel(scenario, self.traits, self.seed, self.run, self.trial,
                                     max(self.n_robots, int(doc.get("robots", 0))))
             # Announced before the robots exist, so that nobody counts a robot both ways.
-            self.pub_cloud = self.create_publisher(PointCloud2, f"~/{convert.SWARM_CLOUD}", qos.DATA)
+            self.pub_cloud = self.create_publisher(PointCloud2, f"~/{topics.SWARM_CLOUD}", qos.DATA)
             self.pub_members = self.create_publisher(String, "~/members", qos.LATCHED)
             self.pub_members.publish(convert.members_msg(self.traits.ids))
         for col, rid in enumerate(self.traits.ids):

@@ -14,7 +14,8 @@ Publishes (node ``world``, private names):
 
 Start gate: the world waits until ``robots`` robots are on the graph and every node named in
 ``wait_for_nodes`` (comma-separated, e.g. ``recorder,analysis``) subscribes to each robot's
-``wait_topics`` (default ``pose,light,led,clock,robots``; ``robots`` is a batched swarm's cloud), so that a recording holds every message,
+``wait_topics`` (default ``pose,light,led,clock,robots``; ``robots`` is a batched swarm's cloud) and
+to every ``/analysis/`` topic on the graph, so that a recording holds every message,
 then ``settle_s`` more. Then:
 
 - ``lockstep``: publish /clock for step k once every robot has published its pose for step
@@ -31,7 +32,6 @@ then ``settle_s`` more. Then:
 from __future__ import annotations
 
 import json
-import re
 import time
 
 import numpy as np
@@ -44,15 +44,15 @@ from std_msgs.msg import String, UInt64
 
 from ..core.light import raster as light_raster
 from ..core.scenario import Scenario
+from ..recording import topics
 from ..ros import convert, params, qos
 from ..ros.executors import run_node, spin_node
 from ..ros.stepping import LockstepPacer
 from ..ros.scenarios import NAMED, named_scenario, scenario_file, world_document
 
 PROG = "kilobot-twin world"
-ROBOT_TOPIC = re.compile(r"^(?:.*/)?kilobot_(\d+)/(pose|light|led|clock)$")
 DATA_TOPICS = ("pose", "light", "led", "clock")
-SWARM_TOPICS = (convert.SWARM_CLOUD,)
+SWARM_TOPICS = (topics.SWARM_CLOUD,)
 
 
 class WorldNode(Node):
@@ -146,15 +146,15 @@ class WorldNode(Node):
     def _poll_graph(self) -> None:
         """Find robots; start once all are there and every awaited node subscribes to them."""
         for topic, _types in self.get_topic_names_and_types():
-            m = ROBOT_TOPIC.match(topic)
-            if m and m.group(2) == "pose" and int(m.group(1)) not in self.robots:
-                rid = int(m.group(1))
+            parsed = topics.parse_robot_topic(topic)
+            if parsed and parsed[1] == "pose" and parsed[0] not in self.robots:
+                rid = parsed[0]
                 self.robots[rid] = topic
                 self.pacer.robots = len(self.robots)
                 if self.mode == "lockstep":
                     self._pose_subs[rid] = self.create_subscription(
                         PoseStamped, topic, lambda data, rid=rid: self._on_pose(rid, data), qos.DATA, raw=True)
-            m = convert.SWARM_MEMBERS_TOPIC.match(topic)
+            m = topics.SWARM_MEMBERS_TOPIC.match(topic)
             if m and m.group(1) not in self.swarms:
                 base = m.group(1)
                 self.swarms[base] = None
@@ -177,9 +177,12 @@ class WorldNode(Node):
         topics = [topic[: -len("pose")] + suffix for topic in self.robots.values() for suffix in self.wait_topics
                   if suffix in DATA_TOPICS]
         topics += [f"{base}/{suffix}" for base in self.swarms for suffix in self.wait_topics if suffix in SWARM_TOPICS]
-        for topic in topics:
+        # The analysis node's topics too (for every awaited node but the analysis itself): its
+        # first values go out with the first step.
+        analysis = [t for t, _ in self.get_topic_names_and_types() if t.startswith("/analysis/")]
+        for topic in topics + analysis:
             names = {i.node_name for i in self.get_subscriptions_info_by_topic(topic)}
-            if not all(n in names for n in self.wait_for_nodes):
+            if not all(n in names for n in self.wait_for_nodes if n != "analysis" or topic not in analysis):
                 return False
         return True
 
@@ -190,7 +193,7 @@ class WorldNode(Node):
         self.swarms[base] = ids
         self.covered |= ids
         if self.mode == "lockstep":
-            self.create_subscription(PointCloud2, convert.swarm_cloud_topic(base),
+            self.create_subscription(PointCloud2, topics.swarm_cloud_topic(base),
                                      lambda data, base=base: self._on_cloud(base, data), qos.DATA, raw=True)
 
     def _start(self) -> None:

@@ -19,10 +19,33 @@ ROBOT_TYPES = {
     "traits": "std_msgs/msg/String",
 }
 ROBOT_TOPIC = re.compile(r"^/kilobot_(\d+)/(" + "|".join(ROBOT_TYPES) + r")$")
+ROBOT_NAMESPACE = re.compile(r"^/kilobot_(\d+)$")
+#: Robot topics published every step (and clock on clock steps): what the recorder acknowledges.
+ROBOT_DATA = ("pose", "light", "led", "clock")
+#: A batched swarm process's member list (group 1: the swarm's topic base, ``/swarm`` or
+#: ``/swarm_<k>``); its cloud is :func:`swarm_cloud_topic`.
+SWARM_MEMBERS_TOPIC = re.compile(r"^((?:.*/)?swarm[^/]*)/members$")
+SWARM_CLOUD = "robots"
 
 
 def robot_namespace(robot_id: int) -> str:
     return f"/kilobot_{int(robot_id)}"
+
+
+def robot_id_of_namespace(namespace: str) -> int | None:
+    """``'/kilobot_7'`` -> 7; ``None`` for any other namespace."""
+    m = ROBOT_NAMESPACE.match(namespace)
+    return int(m.group(1)) if m else None
+
+
+def swarm_cloud_topic(base: str) -> str:
+    return f"{base}/{SWARM_CLOUD}"
+
+
+def topic_group(topic: str) -> str:
+    """``/kilobot_7/pose`` -> ``/kilobot_*/pose`` (robot topics grouped over robots); others as they are."""
+    parsed = parse_robot_topic(topic)
+    return f"/kilobot_*/{parsed[1]}" if parsed else topic
 
 
 def parse_robot_topic(topic: str) -> tuple[int, str] | None:
@@ -31,7 +54,13 @@ def parse_robot_topic(topic: str) -> tuple[int, str] | None:
     return (int(m.group(1)), m.group(2)) if m else None
 
 
-def qos_yaml(reliability: int, durability: int, depth: int, history: int = 1) -> str:
+#: rmw's QoS policy values as rosbag2 stores them.
+RELIABLE, BEST_EFFORT = 1, 2
+TRANSIENT_LOCAL, VOLATILE = 1, 2
+KEEP_LAST = 1
+
+
+def qos_yaml(reliability: int, durability: int, depth: int, history: int = KEEP_LAST) -> str:
     """rosbag2's offered_qos_profiles string for one publisher (ints as in rmw: reliable=1,
     best_effort=2; transient_local=1, volatile=2; keep_last=1)."""
     inf = {"sec": 2147483647, "nsec": 4294967295}
@@ -40,5 +69,5 @@ def qos_yaml(reliability: int, durability: int, depth: int, history: int = 1) ->
                             "avoid_ros_namespace_conventions": False}], sort_keys=False)
 
 
-DATA_QOS = qos_yaml(1, 2, 1000)     # reliable, volatile
-LATCHED_QOS = qos_yaml(1, 1, 1)     # reliable, transient-local
+DATA_QOS = qos_yaml(RELIABLE, VOLATILE, 1000)
+LATCHED_QOS = qos_yaml(RELIABLE, TRANSIENT_LOCAL, 1)

@@ -28,7 +28,6 @@ from __future__ import annotations
 import array
 import json
 import math
-import re
 import struct
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -309,13 +308,6 @@ CLOUD_FIELDS = (("id", "<u4", PointField.UINT32), ("led", "<u4", PointField.UINT
                 ("theta", "<f8", PointField.FLOAT64), ("reading", "<f8", PointField.FLOAT64),
                 ("ticks", "<f8", PointField.FLOAT64))
 CLOUD_DTYPE = np.dtype([(name, fmt) for name, fmt, _ in CLOUD_FIELDS])
-#: A batched swarm's member list (group 1: the swarm's topic base); its cloud is :func:`swarm_cloud_topic`.
-SWARM_MEMBERS_TOPIC = re.compile(r"^((?:.*/)?swarm[^/]*)/members$")
-SWARM_CLOUD = "robots"
-
-
-def swarm_cloud_topic(base: str) -> str:
-    return f"{base}/{SWARM_CLOUD}"
 
 _cloud_templates: dict[int, tuple[bytes, int]] = {}
 

@@ -22,6 +22,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from ..outputs import check_out_dir
+from ..recording.topics import topic_group
 from .scenarios import NAMED, is_scenario_file, load_swarm_traits, named_scenario, scenario_file
 
 #: Fast DDS profiles for the node processes (shared-memory queues sized for swarm bursts).
@@ -68,8 +69,7 @@ class RunReport:
         """``{"/kilobot_*/pose": (messages, topics), "/clock": (n, 1), ...}``."""
         out: dict[str, list] = {}
         for topic, n in sorted(self.counts.items()):
-            parts = topic.split("/")
-            key = "/kilobot_*/" + "/".join(parts[2:]) if len(parts) > 2 and parts[1].startswith("kilobot_") else topic
+            key = topic_group(topic)
             acc = out.setdefault(key, [0, 0])
             acc[0] += n
             acc[1] += 1

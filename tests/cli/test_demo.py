@@ -5,7 +5,6 @@ import hashlib
 import os
 from pathlib import Path
 
-import pytest
 
 from kilobot_twin import cli, demo
 

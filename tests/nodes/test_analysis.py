@@ -32,7 +32,7 @@ def test_analysis_metrics_equal_the_batch_engine(scenario, batched):
         swarm = g.add(SwarmNode(context=g.context, parameter_overrides=overrides(robots=N, seed=seed, batched=batched)))
         assert g.spin_until(lambda: swarm.world_ready.done(), 10)
         swarm.create_robots(g.executor)
-        assert g.spin_until(lambda: world.finished.done(), 60), f"world stopped at step {world.step}"
+        assert g.spin_until(lambda: world.finished.done(), 60), f"world stopped at step {world.pacer.step}"
 
         def caught_up():
             return len(analysis.x) == N and np.allclose([analysis.x[i] for i in range(N)], final["x"], rtol=0,

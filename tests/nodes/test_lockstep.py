@@ -40,7 +40,7 @@ def test_lockstep_equals_batch(scenario, batched):
         swarm = g.add(SwarmNode(context=g.context, parameter_overrides=overrides(robots=N, seed=seed, batched=batched)))
         assert g.spin_until(lambda: swarm.world_ready.done(), 10)
         swarm.create_robots(g.executor)
-        assert g.spin_until(lambda: world.finished.done(), 60), f"world stopped at step {world.step}"
+        assert g.spin_until(lambda: world.finished.done(), 60), f"world stopped at step {world.pacer.step}"
         g.spin_until(lambda: all(len(v) == world.n_steps + 1 for v in col.poses.values()), 5)
     # The handshake took the swarm's cloud for a batched swarm, every robot's pose otherwise.
     assert world.covered == (set(range(N)) if batched else set())

@@ -65,8 +65,13 @@ def test_replay_into_a_fresh_recorder_gives_the_same_bag(tmp_path):
     # Recorded (simulated) time travels with the data: /clock and the header stamps.
     clocks = [m.clock.sec * 10**9 + m.clock.nanosec for t, m in rosbags_messages(out) if t == "/clock"]
     assert clocks == [k * 50_000_000 for k in range(20)]
-    # At rate 2 the 0.95 s recording takes about 0.48 s.
-    assert 0.4 < stats["wall_s"] < 1.5
+    # At rate 2 the 0.95 s recording arrives in about 0.48 s: the receiving recorder's log times
+    # (not the replay's own account) span half the source's, within scheduling noise (rate 1: 1.0).
+    def robot_span(bag):
+        t = [m[2] for m in BagReader(bag).messages() if m[0].startswith("/kilobot_") and not m[0].endswith("/traits")]
+        return (max(t) - min(t)) / 1e9
+    ratio = robot_span(out) / robot_span(src)
+    assert 0.35 < ratio < 0.75, ratio
     assert stats["err_p99_ms"] < 50  # loose: shared CI cores; the benchmark measures the real figure
 
 
