@@ -52,20 +52,27 @@ def _norm(name: str) -> str:
 
 
 def _closure(requirements: list[str]) -> set[str]:
-    """Distributions installed by ``requirements`` (with their dependencies), from this environment."""
-    todo = [_norm(re.split(r"[ ;<>=!~\[]", r, maxsplit=1)[0]) for r in requirements]
+    """Distributions installed by ``requirements`` (with their dependencies and the requirements of
+    the extras asked for, e.g. ``dask[distributed]``), from this environment's metadata."""
+    todo = [(r, ()) for r in requirements]
     seen: set[str] = set()
     while todo:
-        name = todo.pop()
-        if name in seen:
+        req, _ = todo.pop()
+        m = re.match(r"\s*([A-Za-z0-9_.\-]+)\s*(?:\[([^\]]*)\])?", req)
+        name, extras = _norm(m.group(1)), {e.strip() for e in (m.group(2) or "").split(",") if e.strip()}
+        key = name + "[" + ",".join(sorted(extras)) + "]"
+        if key in seen:
             continue
-        seen.add(name)
+        seen.add(key)
         try:
             reqs = md.requires(name) or []
         except md.PackageNotFoundError:
             continue
-        todo += [_norm(re.split(r"[ ;<>=!~\[]", r, maxsplit=1)[0]) for r in reqs if "extra ==" not in r]
-    return seen
+        for r in reqs:
+            marker = re.search(r"extra\s*==\s*['\"]([^'\"]+)['\"]", r)
+            if marker is None or marker.group(1) in extras:
+                todo.append((r, ()))
+    return {k.split("[")[0] for k in seen}
 
 
 @pytest.fixture(scope="module")
