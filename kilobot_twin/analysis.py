@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .core.constants import WHEEL_SEPARATION_M
+from .core.kinematics import heading_bias_from_turn_rate
+
 
 def mean_cost_by_robot(cost):
     """(G, R, N) -> (G, N) mean over Monte Carlo runs."""
@@ -99,7 +102,7 @@ def turn_rate_from_track(t_s, x, y, min_step_m: float = 1e-4):
     return omega.reshape(np.shape(x)[:-1]), speed.reshape(np.shape(x)[:-1])
 
 
-def heading_bias_from_track(t_s, x, y, wheel_separation_m: float = 0.025):
+def heading_bias_from_track(t_s, x, y, wheel_separation_m: float = WHEEL_SEPARATION_M):
     """Dimensionless heading bias (+ = clockwise) from tracked positions: ``b = -omega L / v``."""
     omega, speed = turn_rate_from_track(t_s, x, y)
-    return -omega * wheel_separation_m / speed
+    return heading_bias_from_turn_rate(omega, speed, wheel_separation_m)

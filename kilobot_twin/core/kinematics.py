@@ -99,3 +99,9 @@ def circle_radius_m(heading_bias: float, wheel_separation_m: float = C.WHEEL_SEP
     From ``v = v0`` and ``omega = -b v0 / L``: ``r = v / |omega| = L / |b|`` (independent of speed).
     """
     return wheel_separation_m / abs(heading_bias)
+
+
+def heading_bias_from_turn_rate(turn_rate_rad_s, speed_m_s, wheel_separation_m: float = C.WHEEL_SEPARATION_M):
+    """Heading bias (wheel imbalance, + = clockwise) a robot turning at ``turn_rate_rad_s`` while
+    moving at ``speed_m_s`` has: ``b = -omega L / v`` (paper Eq. 7 solved for b)."""
+    return -np.asarray(turn_rate_rad_s) * wheel_separation_m / np.asarray(speed_m_s)
