@@ -40,7 +40,7 @@ from ..core.scenario import Scenario
 from ..recording import topics
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
-from ..ros.scenarios import parse_world_document, scenario_from_document
+from ..core.scenarios import parse_world_document, scenario_from_document
 
 PROG = "kilobot-twin analysis"
 

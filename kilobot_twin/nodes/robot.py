@@ -46,7 +46,7 @@ from ..recording.topics import robot_id_of_namespace
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
 from ..ros.model import RobotModel, SwarmModel
-from ..ros.scenarios import clock_period_from_document, parse_world_document, scenario_from_document
+from ..core.scenarios import clock_period_from_document, parse_world_document, scenario_from_document
 from ..ros.stepping import StepRule
 
 PROG = "kilobot-twin robot"

@@ -1,7 +1,7 @@
 """``swarm``: N robot nodes in one process (composition).
 
 Parameters: ``robots`` (N), ``traits_file`` (YAML with ``robots:`` or ``population:``; empty:
-draw from the default population of :mod:`kilobot_twin.ros.scenarios`), ``seed``, ``run``,
+draw from the default population of :mod:`kilobot_twin.core.scenarios`), ``seed``, ``run``,
 ``trial``, ``world``, ``batched`` (step all robots in one vectorised core call: in lockstep on
 each /clock step, in realtime on one wall timer of period ``dt_s``; Kuramoto coupling between
 the process's robots is then exact in both modes),
@@ -46,7 +46,7 @@ from ..ros import convert, params, qos
 from ..ros.executors import make_executor, run_node, spin
 from ..ros.model import SwarmModel
 from ..ros.stepping import StepRule
-from ..ros.scenarios import (clock_period_from_document, load_swarm_traits, parse_world_document,
+from ..core.scenarios import (clock_period_from_document, load_swarm_traits, parse_world_document,
                              scenario_from_document)
 from .robot import RobotNode
 

@@ -48,7 +48,7 @@ from ..recording import topics
 from ..ros import convert, params, qos
 from ..ros.executors import run_node, spin_node
 from ..ros.stepping import LockstepPacer
-from ..ros.scenarios import NAMED, named_scenario, scenario_file, world_document
+from ..core.scenarios import NAMED, named_scenario, scenario_file, world_document
 
 PROG = "kilobot-twin world"
 DATA_TOPICS = ("pose", "light", "led", "clock")

@@ -23,7 +23,7 @@ from pathlib import Path
 from ..errors import ConfigError
 from ..outputs import check_out_dir
 from ..recording.topics import topic_group
-from .scenarios import NAMED, is_scenario_file, load_swarm_traits, named_scenario, scenario_file
+from ..core.scenarios import NAMED, is_scenario_file, load_swarm_traits, named_scenario, scenario_file
 
 #: Fast DDS profiles for the node processes (shared-memory queues sized for swarm bursts).
 FASTDDS_PROFILES = Path(__file__).with_name("fastdds.xml")

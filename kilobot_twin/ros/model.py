@@ -15,7 +15,7 @@ from ..core import sim
 from ..core.scenario import Scenario
 from ..core.traits import RobotTraits, SwarmTraits
 from .convert import robot_cdr, robot_cloud_cdr
-from .scenarios import start_pose
+from ..core.scenarios import start_pose
 
 
 class SwarmModel:

@@ -31,7 +31,7 @@ def from_bag(bag_dir: str | Path) -> SwarmRecording:
 
     from ..core.constants import TICK_HZ
     from ..ros import convert
-    from ..ros.scenarios import parse_world_document, scenario_from_document
+    from ..core.scenarios import parse_world_document, scenario_from_document
     from .swarm_data import blink_period_ticks
 
     bag_dir = Path(bag_dir)

@@ -222,7 +222,7 @@ def test_image_field_survives_the_world_document(tmp_path, monkeypatch):
     from kilobot_twin.core.scenario import scenario_from_dict
     from kilobot_twin.core.traits import load_yaml
     from kilobot_twin.errors import ConfigError
-    from kilobot_twin.ros.scenarios import parse_world_document, scenario_from_document, world_document
+    from kilobot_twin.core.scenarios import parse_world_document, scenario_from_document, world_document
 
     img = np.random.default_rng(0).random((8, 12))
     (tmp_path / "fields").mkdir()

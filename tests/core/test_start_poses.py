@@ -59,7 +59,7 @@ def test_noise_free_straight_robot_leaves_its_start_pose_on_the_theory_line():
 
 
 def test_poses_travel_through_the_world_document_exactly():
-    from kilobot_twin.ros.scenarios import parse_world_document, scenario_from_document, world_document
+    from kilobot_twin.core.scenarios import parse_world_document, scenario_from_document, world_document
 
     sc = _scenario(runs=PER_RUN)
     back = scenario_from_document(parse_world_document(world_document(sc, 1, 0, 3, "lockstep")))

@@ -10,7 +10,7 @@ from kilobot_twin.core.constants import LED_BLUE, LED_RED
 from kilobot_twin.nodes.analysis import METRICS, AnalysisNode
 from kilobot_twin.nodes.swarm import SwarmNode
 from kilobot_twin.nodes.world import WorldNode
-from kilobot_twin.ros.scenarios import load_swarm_traits, named_scenario
+from kilobot_twin.core.scenarios import load_swarm_traits, named_scenario
 
 from .graph import Graph, overrides
 

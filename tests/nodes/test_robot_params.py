@@ -12,7 +12,7 @@ from rclpy.parameter import Parameter
 
 from kilobot_twin.core.scenario import Scenario, scenario_from_dict
 from kilobot_twin.nodes.robot import RobotNode, make_robot
-from kilobot_twin.ros.scenarios import parse_world_document, world_document
+from kilobot_twin.core.scenarios import parse_world_document, world_document
 
 from .graph import overrides
 

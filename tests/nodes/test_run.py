@@ -15,7 +15,7 @@ from kilobot_twin.core import sim
 from kilobot_twin.recording.bag import mcap_path, read_metadata, summary_counts
 from kilobot_twin.ros.convert import CLOUD_DTYPE
 from kilobot_twin.ros.launcher import run_twin
-from kilobot_twin.ros.scenarios import load_swarm_traits, named_scenario
+from kilobot_twin.core.scenarios import load_swarm_traits, named_scenario
 
 from ..ros.test_bag import rerun_check, rosbags_messages
 

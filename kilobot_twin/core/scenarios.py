@@ -12,7 +12,7 @@ import json
 from typing import Any, Mapping
 
 
-from ..core.scenario import Scenario, scenario_from_dict
+from .scenario import Scenario, scenario_from_dict
 from ..errors import ConfigError
 
 #: ``run --scenario NAME``: the scenario dictionaries (duration is set by ``--duration``).
@@ -53,7 +53,7 @@ def scenario_file(path: str, duration_s: float | None = None, field: str = "scen
     with ``duration_s`` if given; one-line errors naming ``field``."""
     from pathlib import Path
 
-    from ..core.traits import load_yaml
+    from .traits import load_yaml
 
     if not Path(path).is_file():
         raise ConfigError(field, f"{path}: file not found", "give a scenario YAML path or a named scenario")
@@ -104,7 +104,7 @@ def scenario_from_document(doc: Mapping[str, Any]) -> Scenario:
 def start_pose(scenario: Scenario, seed: int, run: int, robot_id: int):
     """Start (x, y, theta) of one robot, as the batch engine places it: a function of
     (seed, run, id) only, for every start kind."""
-    from ..core import sim
+    from . import sim
 
     return sim.start_poses(scenario, seed, [run], [robot_id])
 
@@ -120,7 +120,7 @@ DEFAULT_POPULATION: dict = {
 
 def load_swarm_traits(path: str, n_robots: int, seed: int, field: str = "traits_file"):
     """Swarm traits from a YAML file (robots: or population:), or drawn from the default population."""
-    from ..core.traits import draw_population, load_swarm
+    from .traits import draw_population, load_swarm
 
     if not path:
         return draw_population({"n": n_robots, **DEFAULT_POPULATION}, seed)
