@@ -2,7 +2,8 @@
 # Regenerate the README's pictures (run from the repository root: `make pictures`).
 #   docs/fig5_phototaxis.png  the paper's Fig. 5 reproduced (kilobot-twin experiment phototaxis --quick)
 #   docs/viewer_demo.png      the Rerun viewer on the demo's recording (out/demo/latest/twin.rrd)
-# Needs a display for the viewer; without one it uses xvfb-run and software Vulkan:
+# Needs a display for the viewer; without one it uses xvfb-run (a screen larger than the window, so
+# that the pointer, at its centre, hovers over nothing) and software Vulkan:
 #   apt-get update && apt-get install -y xvfb mesa-vulkan-drivers
 # The viewer picture uses the latest finished `make demo` run (a quick demo is run if there is none).
 set -eu
@@ -31,7 +32,7 @@ SHOT="$OUT/viewer_full.png"
 if [ -n "${DISPLAY:-}" ]; then
     "$BIN/rerun" "$RRD" --screenshot-to "$SHOT" --window-size 1600x1000
 else
-    xvfb-run -a -s "-screen 0 1600x1000x24" "$BIN/rerun" "$RRD" --screenshot-to "$SHOT" --window-size 1600x1000
+    xvfb-run -a -s "-screen 0 4000x2400x24" "$BIN/rerun" "$RRD" --screenshot-to "$SHOT" --window-size 1600x1000
 fi
 "$BIN/python" - "$SHOT" docs/viewer_demo.png 1100 <<'PY'
 import sys
