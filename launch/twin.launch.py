@@ -24,7 +24,7 @@ from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 
 from kilobot_twin.ros.launcher import FASTDDS_PROFILES
-from kilobot_twin.ros.scenarios import NAMED
+from kilobot_twin.core.scenarios import NAMED
 
 ARGUMENTS = {  # name: (default, description)
     "scenario": ("phototaxis", f"named scenario ({', '.join(NAMED)})"),

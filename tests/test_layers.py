@@ -90,3 +90,16 @@ def test_one_module_opens_mcap_files():
             if any(m.split(".")[0] == "mcap" for m in mods):
                 users.append(str(path.relative_to(PKG)))
     assert sorted(set(users)) == ["recording/bag.py"]
+
+
+def test_launch_files_import_names_that_exist():
+    """launch/*.py run only under `ros2 launch` (launch is not on PyPI): at least what they take
+    from the package must exist, so a moved module cannot break them unseen."""
+    import importlib
+
+    for path in (PKG.parent / "launch").glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("kilobot_twin"):
+                mod = importlib.import_module(node.module)
+                for a in node.names:
+                    assert hasattr(mod, a.name), f"{path.name}: {node.module}.{a.name}"
