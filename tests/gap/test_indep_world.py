@@ -1,0 +1,91 @@
+"""The independent world (benchmarks/indep_world.py) writes datasets the project's reader accepts,
+and its physics agrees with the project's summaries (two code bases, one answer)."""
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kilobot_twin import measured
+from kilobot_twin.gap.model import measured_summaries
+
+_spec = importlib.util.spec_from_file_location("indep_world", Path(__file__).parents[2] / "benchmarks" / "indep_world.py")
+iw = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(iw)
+
+
+@pytest.mark.parametrize("kind, hidden", [("motion", "heading_bias,floor_tilt"), ("motion", "motion_noise"),
+                                          ("light_sweep", "sensor_gain"), ("blink", "clock_drift")])
+@pytest.mark.parametrize("seed", [1, 2])
+def test_reader_accepts_randomised_datasets(tmp_path, kind, hidden, seed):
+    truth = iw.generate(kind, hidden, tmp_path, seed=seed)
+    ds = measured.load(tmp_path)  # raises on anything the format does not allow
+    sh = truth["shape"]
+    assert ds.kind == kind and ds.trials == sh["trials"] and ds.robots == list(range(sh["robots"]))
+    assert ds.dt_s == pytest.approx(1 / sh["frame_hz"])
+    missing = {tuple(m) for m in sh["missing"]}
+    assert set(ds.tracks) == {(k, i) for k in range(sh["trials"]) for i in range(sh["robots"])} - missing
+    # Uneven trials: each track ends within a frame of its trial's length.
+    for (k, i), tr in ds.tracks.items():
+        assert tr.t_s[-1] <= sh["lengths_s"][k] + 0.01
+    assert json.loads((tmp_path / "truth.json").read_text())["hidden"] == hidden.split(",")
+
+
+def test_noiseless_world_matches_the_projects_summaries(tmp_path):
+    """Without nuisances the world's robots turn at their true rate and drive at their true speed
+    (the twin's summaries, a second implementation, measure them), and the true heading bias in
+    the twin's units is b = -omega L / v."""
+    truth = iw.generate("motion", "heading_bias,speed_heterogeneity", tmp_path, seed=4, nuisance_scale=0.0)
+    _, s = measured_summaries(measured.load(tmp_path))
+    w = np.array([truth["robots"][str(i)]["turn_rate_rad_s"] for i in range(truth["shape"]["robots"])])
+    v = np.array([truth["robots"][str(i)]["speed_m_s"] for i in range(truth["shape"]["robots"])])
+    # Summaries use 2 s chords: on a circle of radius v/w the chord is 2 (v/w) sin(w 1 s), shorter
+    # than v 2 s by a relative (w 1 s)^2 / 6 < 1e-3 here; headings of chords turn at exactly w.
+    seen = _seen(truth)
+    assert np.isfinite(s["turn_rate"]).sum() == seen.sum()
+    np.testing.assert_allclose(s["turn_rate"][seen], np.broadcast_to(w, seen.shape)[seen], atol=2e-5)
+    np.testing.assert_allclose(s["speed"][seen], np.broadcast_to(v, seen.shape)[seen], rtol=2e-3)
+    b = np.array([truth["robots"][str(i)]["heading_bias"] for i in range(len(w))])
+    np.testing.assert_allclose(b, -w * 0.025 / v)
+
+
+def test_noiseless_sensor_and_clock(tmp_path):
+    t = iw.generate("light_sweep", "sensor_gain", tmp_path / "l", seed=5, nuisance_scale=0.0)
+    _, s = measured_summaries(measured.load(tmp_path / "l"))
+    g = np.array([t["robots"][str(i)]["sensor_gain"] for i in range(t["shape"]["robots"])])
+    o = np.array([t["robots"][str(i)]["sensor_offset"] for i in range(t["shape"]["robots"])])
+    # Expected: a least-squares line (numpy's polyfit) through the world's noiseless response
+    # on a fine grid of V, below the 900-count knee the summary uses; rounding to counts moves
+    # it by far less than the tolerance.
+    V = np.linspace(0.02, 1, 20001)
+    exp_g, exp_o = np.empty(len(g)), np.empty(len(g))
+    for i in range(len(g)):
+        raw = o[i] + g[i] * 1024 * V
+        r = raw / (1 + (raw / 1023) ** 9) ** (1 / 9)
+        exp_g[i], exp_o[i] = np.polyfit(V[r < 900], r[r < 900], 1)
+    seen = _seen(t)
+    np.testing.assert_allclose(s["gain"][seen], np.broadcast_to(exp_g, seen.shape)[seen], rtol=2e-3)
+    np.testing.assert_allclose(s["offset"][seen], np.broadcast_to(exp_o, seen.shape)[seen], atol=1.5)
+    t = iw.generate("blink", "clock_drift", tmp_path / "b", seed=5, nuisance_scale=0.0)
+    _, s = measured_summaries(measured.load(tmp_path / "b"))
+    c = np.array([t["robots"][str(i)]["clock_rate"] for i in range(t["shape"]["robots"])])
+    # 31 Hz x rate / 30 ticks per toggle; toggles timed to a frame (1/30 s) over ~120 s.
+    seen = _seen(t)
+    np.testing.assert_allclose(s["toggle_rate"][seen], np.broadcast_to(31 * c / 30, seen.shape)[seen], rtol=1e-3)
+
+
+def _seen(truth):
+    """(trials, robots) True where the robot took part in the trial."""
+    sh = truth["shape"]
+    seen = np.ones((sh["trials"], sh["robots"]), bool)
+    for k, i in sh["missing"]:
+        seen[k, i] = False
+    return seen
+
+
+def test_bad_effect_name_is_one_line_and_exit_2(tmp_path, capsys):
+    assert iw.main(["--kind", "blink", "--hidden", "heading_bias", "--out", str(tmp_path / "x")]) == 2
+    assert "heading_bias is not an effect of blink" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
