@@ -29,6 +29,11 @@ def test_heading_bias_named_recovered_and_gap_shrinks(tmp_path):
     fitted = load_swarm(rep["model"])
     true = np.array([truth["robots"][str(i)]["heading_bias"] for i in fitted.ids])
     assert np.corrcoef(true, fitted.heading_bias)[0, 1] >= 0.95
+    # Slope and intercept, not only correlation: each robot within 4 standard errors of its
+    # turn rate's mean (b = -omega L / v), and the fitted-vs-true line's slope within 10 % of 1.
+    tol = _per_robot_tolerance(tmp_path / "motion_heading_bias", "turn_rate", 4) * 0.025 / (0.06 * 48 / 255)
+    assert np.all(np.abs(fitted.heading_bias - true) <= tol), (fitted.heading_bias - true, tol)
+    assert abs(np.polyfit(true, fitted.heading_bias, 1)[0] - 1) <= 0.1
     assert rep["gap_shrink"]["value"] >= 0.8 and rep["gap_shrink"]["ci95"][0] > 0
     assert rep["disagreements"][0]["signal"] == "turn_rate:between_robots"
     # The report has every field the issue names.
@@ -57,11 +62,43 @@ def test_pair_is_named_in_full(tmp_path):
 
 def test_effect_outside_the_library_is_unexplained(tmp_path):
     _, rep = run(tmp_path, "motion", "floor_tilt")
+    assert rep["named_effects"] == []
     assert rep["unexplained"] and "speed:heading_dependence" in rep["unexplained_signals"]
 
 
-@pytest.mark.parametrize("kind, hidden, trait", [("light_sweep", "sensor_gain", "sensor_gain"),
-                                                  ("blink", "clock_drift", "clock_rate")])
+def _per_robot_tolerance(ds_dir, component, trials):
+    """4 standard errors of each robot's mean summary over its trials, the tolerance of a
+    per-robot parameter fitted from that mean. The trial-to-trial sd is pooled over robots (they
+    share the noise; one robot's 4 trials give an sd with 3 degrees of freedom, often half the
+    true one)."""
+    from kilobot_twin import measured
+    from kilobot_twin.gap.model import measured_summaries
+
+    _, s = measured_summaries(measured.load(ds_dir))
+    x = s[component]
+    n = np.isfinite(x).sum(0)
+    pooled = np.sqrt(np.nansum((x - np.nanmean(x, axis=0)) ** 2) / (n - 1).sum())
+    return 4 * pooled / np.sqrt(n)
+
+
+def test_recovered_sensor_gain_and_offset_match_the_truth_in_slope_and_intercept(tmp_path):
+    """Not only correlated: each robot's fitted gain and offset lie within 4 standard errors of
+    the truth (gain in counts per unit V is 1024 x sensor_gain), and the line fitted vs true has
+    slope within 10 % of 1."""
+    truth, rep = run(tmp_path, "light_sweep", "sensor_gain")
+    assert rep["named_effects"] == ["sensor_gain"] and rep["gap_shrink"]["ci95"][0] > 0
+    fitted = load_swarm(rep["model"])
+    ds = tmp_path / "light_sweep_sensor_gain"
+    for trait, comp, scale in (("sensor_gain", "gain", 1024.0), ("sensor_offset", "offset", 1.0)):
+        true = np.array([truth["robots"][str(i)][trait] for i in fitted.ids])
+        got = fitted.values[trait]
+        tol = _per_robot_tolerance(ds, comp, 4) / scale
+        assert np.all(np.abs(got - true) <= tol), (trait, got - true, tol)
+        slope, intercept = np.polyfit(true, got, 1)
+        assert abs(slope - 1) <= 0.1, (trait, slope)
+
+
+@pytest.mark.parametrize("kind, hidden, trait", [("blink", "clock_drift", "clock_rate")])
 def test_sensor_and_clock_effects(tmp_path, kind, hidden, trait):
     truth, rep = run(tmp_path, kind, hidden)
     assert rep["named_effects"] == [hidden]
