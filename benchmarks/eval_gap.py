@@ -94,6 +94,7 @@ def main():
     ap.add_argument("--effect-scale", type=float, default=1.0, help="indep: effect sizes x this")
     ap.add_argument("--fixed-shape", action="store_true", help="indep: 12 robots x 4 trials at 10 Hz")
     ap.add_argument("--random-nuisance", action="store_true", help="synth: randomise the twin's nuisance levels")
+    ap.add_argument("--summarise", action="store_true", help="only print the figures of OUT/results.json")
     a = ap.parse_args()
     cases = CASES
     if a.cases:
@@ -108,10 +109,15 @@ def main():
     t0 = time.perf_counter()
     from tqdm import tqdm
 
-    with ProcessPoolExecutor(a.workers) as pool:
-        rows = list(tqdm(pool.map(one, jobs), total=len(jobs), desc="datasets"))
     Path(a.out).mkdir(parents=True, exist_ok=True)
-    (Path(a.out) / "results.json").write_text(json.dumps(rows, indent=1))
+    rows = []
+    if a.summarise:
+        rows = json.loads((Path(a.out) / "results.json").read_text())
+    else:
+        with ProcessPoolExecutor(a.workers) as pool:
+            for row in tqdm(pool.map(one, jobs), total=len(jobs), desc="datasets"):
+                rows.append(row)  # written as they come, so a cut-short run still has its rows
+                (Path(a.out) / "results.json").write_text(json.dumps(rows, indent=1))
     print(f"{len(rows)} datasets in {time.perf_counter() - t0:.0f} s ({a.workers} workers)\n")
     by = defaultdict(list)
     for r in rows:

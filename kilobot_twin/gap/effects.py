@@ -12,6 +12,7 @@ summaries alike and cancels in the ratio or difference.
 
 from __future__ import annotations
 
+import abc
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -175,7 +176,16 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
 
 # --- named effects ---------------------------------------------------------------------------------
 
-class Effect:
+class Effect(abc.ABC):
+    """A named effect the workflow can add to the twin (like a pysindy feature library entry).
+
+    Subclass it, give ``name``, ``kind`` (the data it explains: motion, light_sweep, blink),
+    ``predicts`` and ``fit``, and pass it in ``GapSettings(library=...)``: the workflow scores
+    every effect of the library the same way (held-out likelihood of simulations of the fitted
+    model), so adding one needs no change to the workflow. ``simulate`` is the fitted model's
+    simulation under the data's conditions (the twin's, by default).
+    """
+
     name = ""
     kind = ""
     extends: tuple = ()  # effects this one contains as a special case (nested models)
@@ -185,10 +195,16 @@ class Effect:
     #: of the predictive variance (see :func:`leverage`).
     predicts: dict = {}
 
-    def fit(self, model: TwinModel, meas: dict, ref: dict, resim=None) -> TwinModel:  # pragma: no cover
+    @abc.abstractmethod
+    def fit(self, model: TwinModel, meas: dict, ref: dict, resim=None) -> TwinModel:
         """Fit on ``meas`` (summaries of some trials) given ``ref`` (summaries of the current model
         simulated under the same trials); ``resim(model)`` simulates another model there."""
-        raise NotImplementedError
+
+    def simulate(self, cond, model: TwinModel, M: int, seed: int, trials=None) -> dict:
+        """Summaries of M replicates of the fitted model under the data's conditions (M, K', N)."""
+        from .model import simulate
+
+        return simulate(cond, model, M, seed, trials)
 
 
 class HeadingBias(Effect):
@@ -328,7 +344,8 @@ BASE_PREDICTS = {"motion": {"turn_rate": "pop", "speed": "pop", "diffusion": "po
 _RANK = {None: 0, "pop": 1, "mean": 2, "line": 3}
 
 
-def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit_base: bool = True):
+def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit_base: bool = True,
+             library: dict | None = None):
     """Estimation part of the predictive variance of trial ``k``'s summary, as a multiple of
     one trial's simulated variance: ``(h_track, h_level)`` for one robot's summary and for the
     mean over robots.
@@ -344,7 +361,7 @@ def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit
     """
     how = BASE_PREDICTS.get(kind, {}).get(component) if fit_base else None
     for name in names:
-        p = LIBRARY[name].predicts.get(component)
+        p = (LIBRARY if library is None else library)[name].predicts.get(component)
         if _RANK[p] > _RANK[how]:
             how = p
     t = np.asarray(train, dtype=float)

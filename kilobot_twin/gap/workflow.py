@@ -23,12 +23,13 @@
 
 from __future__ import annotations
 
+import functools
 import itertools
 import json
 import math
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +42,9 @@ from .model import COMPONENTS, Conditions, measured_summaries, simulate
 
 @dataclass
 class GapSettings:
+    """Workflow settings. ``library`` maps names to the :class:`effects.Effect` objects that are
+    candidates (default: the built-in library); add your own effect there."""
+
     seed: int = 0
     alpha: float = 0.01
     m_null: int = 120
@@ -48,6 +52,7 @@ class GapSettings:
     m_score: int = 30
     boot: int = 500
     max_steps: int = 4
+    library: dict = field(default_factory=lambda: dict(E.LIBRARY))
 
 
 # --- statistics ------------------------------------------------------------------------------
@@ -202,7 +207,7 @@ class _Fitter:
             def resim(m, _j=j):
                 return simulate(self.cond, m, self.gs.m_ref, seed + 101 * (_j + 1), trials)
 
-            model = E.LIBRARY[name].fit(model, meas, ref, resim)
+            model = self.gs.library[name].fit(model, meas, ref, resim)
             model.named = list(names[: j + 1])
         self.cache[key] = model
         return model
@@ -221,7 +226,8 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
     for k in range(K):
         train = [t for t in range(K) if t != k]
         model = fitter.fit(names, train)
-        sims = simulate(fitter.cond, model, fitter.gs.m_score, fitter.gs.seed + 7919 + k, [k])
+        sim = fitter.gs.library[names[-1]].simulate if names else functools.partial(simulate)
+        sims = sim(fitter.cond, model, fitter.gs.m_score, fitter.gs.seed + 7919 + k, [k])
         for c in comps:
             x = sims[c][:, 0, :]  # (M, N)
             pred[c]["mean"][k] = np.nanmean(x, axis=0)
@@ -234,7 +240,7 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             pooled = np.nanmean(var_i)
             var_i = 0.5 * np.where(np.isfinite(var_i), var_i, pooled) + 0.5 * pooled
             floor = (1e-4 * np.nanmean(np.abs(x))) ** 2
-            h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base)
+            h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base, fitter.gs.library)
             pred[c]["sd"][k] = np.sqrt((var_i + floor) * (1 + h_track))
             pred[c]["sd_level"][k] = np.sqrt((pooled + floor) * (1 + h_level))
     return pred
@@ -364,7 +370,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
     steps, disagreements = [], []
     unexplained, unexplained_signals = False, []
     pred_cache = {(): _heldout(fitter, (), kind)}
-    candidates = [e for e in E.LIBRARY.values() if e.kind == kind]
+    candidates = [e for e in gs.library.values() if e.kind == kind]
     for round_ in range(gs.max_steps + 1):
         model = fitter.fit(names, all_trials)
         null = simulate(cond, model, gs.m_null, gs.seed + 31 * (round_ + 1))
@@ -396,7 +402,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
             after = {f["signal"]: f for f in detect(kind, meas, next_null, cond.trials, gs.alpha)}
             return [f["signal"] for f in flagged if not after[f["signal"]]["flagged"]]
 
-        d = decide(scores, resolves, rng, gs.boot)
+        d = decide(scores, resolves, rng, gs.boot, gs.library)
         best, order, ci_gain, ci_diff, resolved = d["best"], d["order"], d["ci_gain"], d["ci_diff"], d["resolved"]
         gain = scores[best]
         log(f"[{kind}]   scores: " + ", ".join(f"{k} {np.nansum(scores[k]):+.1f}" for k in order)

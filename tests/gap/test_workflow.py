@@ -158,3 +158,29 @@ def test_gap_refuses_a_single_run_bag_with_one_line(tmp_path):
     w.close()
     with pytest.raises(ConfigError, match="trial structure"):
         dataset_from_bag(tmp_path / "b")
+
+
+def test_a_users_own_effect_is_scored_and_named_without_touching_the_workflow(tmp_path):
+    """A per-robot turn written here (not the library's heading_bias, which is left out of the
+    settings' library) is found on heading-bias data: the workflow takes its candidates from
+    the settings."""
+    from dataclasses import replace
+
+    from kilobot_twin.gap import effects as E
+
+    class MyTurn(E.Effect):
+        name, kind = "my_turn", "motion"
+        predicts = {"turn_rate": "mean"}
+
+        def fit(self, model, meas, ref, resim=None):
+            v = 0.06 * 48 / 255 * model.swarm.speed_factor
+            b = -np.nanmean(meas["turn_rate"], axis=0) * 0.025 / v  # b = -omega L / v
+            return model.with_traits(heading_bias=b, bias_trial_sd=np.zeros(len(b)))
+
+    with pytest.raises(TypeError):
+        E.Effect()  # abstract: an effect must say how it is fitted
+    lib = {k: v for k, v in E.LIBRARY.items() if k not in ("heading_bias", "bias_drift")}
+    lib["my_turn"] = MyTurn()
+    truth, rep = run(tmp_path, "motion", "heading_bias", gs=replace(FAST, library=lib))
+    assert rep["named_effects"] == ["my_turn"]
+    assert "heading_bias" not in rep["steps"][0]["scores"]
