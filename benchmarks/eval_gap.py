@@ -152,6 +152,13 @@ def main():
         lo = np.array([r["shrink"]["ci95"][0] for r in rs])
         print(f"  {key[0] + ': ' + key[1]:42s} median shrink {np.median(sh):.0%}, >= 80 %: {np.mean(sh >= 0.8):.0%}, "
               f"CI excludes 0: {np.mean(lo > 0):.0%}")
+    print("\nminimum detectable effect stated by the reports (detection, 80 % power), median [min, max]:")
+    mdes = defaultdict(list)
+    for r in rows:
+        for k, v in (r.get("mde") or {}).items():
+            mdes[(k, v["unit"])].append(v["size"])
+    for (k, unit), v in mdes.items():
+        print(f"  {k:22s} {np.median(v):.3g} [{np.min(v):.3g}, {np.max(v):.3g}] ({unit})")
     secs = np.array([r["seconds"] for r in rows])
     print(f"\nrun time per dataset: median {np.median(secs):.1f} s, max {secs.max():.1f} s "
           f"(with {a.workers} datasets at once on this machine)")

@@ -375,6 +375,8 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         model = fitter.fit(names, all_trials)
         null = simulate(cond, model, gs.m_null, gs.seed + 31 * (round_ + 1))
         found = detect(kind, meas, null, cond.trials, gs.alpha)
+        if round_ == 0:
+            mde = minimum_detectable(kind, meas, null, cond.trials, gs.alpha)
         flagged = [f for f in found if f["flagged"]]
         for f in flagged:
             disagreements.append({"round": round_, "signal": f["signal"], "robots": [int(cond.robot_ids[i]) for i in f["robots"]],
@@ -445,10 +447,53 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         "gap_shrink": {"value": float(1 - after / before) if before > 0 else 0.0,
                        "ci95": [float(x) for x in np.nanpercentile(shrink, [2.5, 97.5])]},
         "nuisances": _nuisances(fitter.fit((), all_trials), cond) if fit_base else {},
+        "minimum_detectable": mde,
         "steps": steps, "disagreements": disagreements, "seconds": time.perf_counter() - t0,
         "_residuals": _residuals(meas, pred_cache[()], pred_cache[names], comps),
     }
     return {"section": section, "model": final}
+
+
+#: effect -> (summary whose between-robot F statistic detects it, how its size is expressed)
+_MDE_OF = {"motion": {"heading_bias": ("turn_rate", "sd of the per-robot turn rate, rad/s"),
+                      "speed_heterogeneity": ("speed", "relative sd of the per-robot speed factor"),
+                      "motion_noise": ("diffusion", "sd of the per-robot heading diffusion, rad^2/s")},
+           "light_sweep": {"sensor_gain": ("gain", "relative sd of the per-robot sensor gain")},
+           "blink": {"clock_drift": ("toggle_rate", "relative sd of the per-robot clock rate")}}
+
+
+def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: float, power: float = 0.8) -> dict:
+    """The smallest between-robot spread of each effect that the detection step flags with
+    ``power`` on this dataset (its robots, trials, noise), from the fitted base's simulations.
+
+    Between robots that differ by sd tau, a robot's mean over its K trials varies by an extra
+    tau^2, so the F ratio of between- to within-robot mean squares grows by the factor
+    1 + K tau^2 / s_w^2 (s_w^2: the within-robot variance of one trial's summary). Its logarithm
+    is what :func:`detect` compares with the simulated null (mean m0, sd s0), flagging above
+    m0 + z(alpha / n) s0; with the same spread under the effect, ``power`` is reached when
+    log(1 + K tau^2 / s_w^2) = (z(alpha / n) + z(1 - power)) s0. This covers detection only
+    (naming also needs the held-out score), so it is a lower bound on what gets named.
+    """
+    from scipy.stats import norm
+
+    stats = statistics(kind, null, trials)
+    z = norm.isf(alpha / len(stats)) + norm.isf(1 - power)
+    out = {}
+    for effect, (comp, unit) in _MDE_OF.get(kind, {}).items():
+        f = np.asarray(stats[f"{comp}:between_robots"][0], dtype=float)
+        s0 = np.nanstd(f[np.isfinite(f)], ddof=1)
+        x = null[comp]  # (M, K, N)
+        with np.errstate(all="ignore"):
+            s_w2 = np.nanmean([E._within_var(r) for r in x])
+            k_eff = float(np.nanmean(np.isfinite(meas[comp]).sum(0)))
+            tau = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
+            level = float(np.nanmean(x))
+        size = tau if comp in ("turn_rate", "diffusion") else tau / abs(level)
+        out[effect] = {"size": size, "unit": unit}
+        if effect == "heading_bias":  # also in the twin's heading-bias units, b = -omega L / v
+            v = float(np.nanmean(null["speed"]))
+            out[effect]["heading_bias_sd"] = tau * 0.025 / v
+    return out
 
 
 def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
