@@ -377,9 +377,21 @@ def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit
     return h, h
 
 
+class Summaries(dict):
+    """Per-(trial, robot) summaries (name -> (K', N) array) of some trials of a dataset, and
+    which trials they are (``trials``, (K',)): a line over trial index needs them."""
+
+    def __init__(self, arrays: dict, trials):
+        super().__init__(arrays)
+        self.trials = np.asarray(trials)
+
+
 def _trial_index(meas):
-    """(K', 1) trial indices of the measured summaries (stored under the '_trials' key)."""
-    return np.asarray(meas["_trials"], dtype=float)[:, None]
+    """(K', 1) trial indices of the measured summaries (0..K'-1 when not given)."""
+    trials = getattr(meas, "trials", None)
+    if trials is None:
+        trials = np.arange(len(meas["turn_rate"]))
+    return np.asarray(trials, dtype=float)[:, None]
 
 
 LIBRARY: dict[str, Effect] = {e.name: e for e in (HeadingBias(), SpeedHeterogeneity(), BiasDrift(), MotionNoise(),

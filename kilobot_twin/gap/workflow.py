@@ -55,6 +55,19 @@ class GapSettings:
     library: dict = field(default_factory=lambda: dict(E.LIBRARY))
 
 
+_PURPOSE = {"base_ref": 1, "base_probe": 2, "effect_ref": 3, "effect_resim": 4, "heldout": 5, "null": 6, "bootstrap": 7}
+
+
+def child_seed(root: int, purpose: str, *keys: int) -> int:
+    """An independent seed for one purpose of the workflow: the child of ``root`` at
+    ``spawn_key = (purpose, *keys)`` (what ``SeedSequence(root).spawn`` hands out, addressed by
+    key rather than by the order of spawning, so that caching a fit does not shift any stream).
+    The null of the next round and the check that a name resolves a signal share a key on purpose:
+    both ask whether the same model flags the same signal."""
+    ss = np.random.SeedSequence(root, spawn_key=(_PURPOSE[purpose], *(int(k) for k in keys)))
+    return int(ss.generate_state(1, dtype=np.uint32)[0])
+
+
 # --- statistics ------------------------------------------------------------------------------
 
 def _f_between(x):
@@ -177,35 +190,33 @@ class _Fitter:
         self.base_cache = {}  # trials -> fitted base model
 
     def meas_on(self, trials):
-        m = {k: v[trials] for k, v in self.meas.items() if k != "_trials"}
-        m["_trials"] = np.asarray(trials)
-        return m
+        return E.Summaries({k: v[trials] for k, v in self.meas.items()}, trials)
 
     def fit(self, names: tuple, trials) -> E.TwinModel:
         key = (names, tuple(int(t) for t in trials))
         if key in self.cache:
             return self.cache[key]
         meas = self.meas_on(np.asarray(trials))
-        seed = self.gs.seed + 1000 * len(names) + 17
+        depth = len(names)
         model = self.start
         if self.fit_base:
             if key[1] not in self.base_cache:
-                ref = simulate(self.cond, model, self.gs.m_ref, self.gs.seed + 5, trials)
+                ref = simulate(self.cond, model, self.gs.m_ref, child_seed(self.gs.seed, "base_ref"), trials)
 
                 calls = itertools.count(1)
 
                 def resim_base(m):
-                    return simulate(self.cond, m, self.gs.m_ref, self.gs.seed + 5 + 53 * next(calls), trials)
+                    return simulate(self.cond, m, self.gs.m_ref, child_seed(self.gs.seed, "base_probe", next(calls)), trials)
 
                 all_trials = tuple(range(self.cond.trials))
                 noise = None if key[1] == all_trials else self.fit((), all_trials)
                 self.base_cache[key[1]] = E.fit_base(model, meas, ref, resim_base, noise)
             model = self.base_cache[key[1]]
         for j, name in enumerate(names):
-            ref = simulate(self.cond, model, self.gs.m_ref, seed + j + 1, trials)
+            ref = simulate(self.cond, model, self.gs.m_ref, child_seed(self.gs.seed, "effect_ref", depth, j), trials)
 
             def resim(m, _j=j):
-                return simulate(self.cond, m, self.gs.m_ref, seed + 101 * (_j + 1), trials)
+                return simulate(self.cond, m, self.gs.m_ref, child_seed(self.gs.seed, "effect_resim", depth, _j), trials)
 
             model = self.gs.library[name].fit(model, meas, ref, resim)
             model.named = list(names[: j + 1])
@@ -227,7 +238,7 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
         train = [t for t in range(K) if t != k]
         model = fitter.fit(names, train)
         sim = fitter.gs.library[names[-1]].simulate if names else functools.partial(simulate)
-        sims = sim(fitter.cond, model, fitter.gs.m_score, fitter.gs.seed + 7919 + k, [k])
+        sims = sim(fitter.cond, model, fitter.gs.m_score, child_seed(fitter.gs.seed, "heldout", k), [k])
         for c in comps:
             x = sims[c][:, 0, :]  # (M, N)
             pred[c]["mean"][k] = np.nanmean(x, axis=0)
@@ -359,13 +370,13 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
     t0 = time.perf_counter()
     cond, meas = measured_summaries(ds)
     kind = ds.kind
-    meas["_trials"] = np.arange(cond.trials)
+    meas = E.Summaries(meas, np.arange(cond.trials))
     fit_base = base is None
     start = base if base is not None else E.nominal_model(kind, cond.robot_ids)
     fitter = _Fitter(cond, meas, start, gs, fit_base)
     comps = COMPONENTS[kind]
     all_trials = list(range(cond.trials))
-    rng = np.random.default_rng(gs.seed)
+    rng = np.random.default_rng(np.random.SeedSequence(gs.seed, spawn_key=(_PURPOSE["bootstrap"],)))
     names: tuple = ()
     steps, disagreements = [], []
     unexplained, unexplained_signals = False, []
@@ -373,7 +384,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
     candidates = [e for e in gs.library.values() if e.kind == kind]
     for round_ in range(gs.max_steps + 1):
         model = fitter.fit(names, all_trials)
-        null = simulate(cond, model, gs.m_null, gs.seed + 31 * (round_ + 1))
+        null = simulate(cond, model, gs.m_null, child_seed(gs.seed, "null", round_))
         found = detect(kind, meas, null, cond.trials, gs.alpha)
         if round_ == 0:
             mde = minimum_detectable(kind, meas, null, cond.trials, gs.alpha)
@@ -400,7 +411,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         def resolves(name):
             # A name must remove a disagreement, not only raise the likelihood elsewhere.
             cand_model = fitter.fit(names + (name,), all_trials)
-            next_null = simulate(cond, cand_model, gs.m_null, gs.seed + 31 * (round_ + 2))
+            next_null = simulate(cond, cand_model, gs.m_null, child_seed(gs.seed, "null", round_ + 1))
             after = {f["signal"]: f for f in detect(kind, meas, next_null, cond.trials, gs.alpha)}
             return [f["signal"] for f in flagged if not after[f["signal"]]["flagged"]]
 

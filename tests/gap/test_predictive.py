@@ -49,7 +49,6 @@ def test_line_per_robot_is_calibrated_on_held_out_end_trials(tmp_path):
     for seed in range(3):
         synth("motion", "bias_drift", tmp_path / str(seed), seed=seed)
         cond, meas = measured_summaries(measured.load(tmp_path / str(seed)))
-        meas["_trials"] = np.arange(cond.trials)
         fitter = _Fitter(cond, meas, E.nominal_model("motion", cond.robot_ids), gs, True)
         pred = _heldout(fitter, ("bias_drift",), "motion")["turn_rate"]
         z2 = ((meas["turn_rate"] - pred["mean"]) / pred["sd"]) ** 2  # (K, N)
