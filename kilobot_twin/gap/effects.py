@@ -119,7 +119,10 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
             r1 = np.nanmean(resim(m.with_traits(sensor_noise=np.full(n, PROBE["sensor_noise"])))["residual_sd"] ** 2)
             target = np.nanmean(meas["residual_sd"] ** 2)
             noise2 = PROBE["sensor_noise"] ** 2 * max(target - r0, 0.0) / max(r1 - r0, 1e-12)
-            m = m.with_traits(sensor_noise=np.full(n, np.sqrt(noise2)))
+            # Never below the ADC's own rounding (1-count steps: variance 1/12): a sensor
+            # without noise still reads integers, and a noiseless model would make every
+            # simulated sweep identical, its null spread 0 and any difference infinitely significant.
+            m = m.with_traits(sensor_noise=np.full(n, np.sqrt(max(noise2, ADC_ROUNDING_VAR))))
         return m
     # Identical clocks; the spread of trial rates (Eq. 4's sigma for clocks) is fitted.
     c = model.swarm.clock_rate.mean() * np.nanmean(meas["toggle_rate"]) / np.nanmean(ref["toggle_rate"])
@@ -138,6 +141,8 @@ def _est_var_rel(ref, model, resim=None):
     rel = rate / np.nanmean(rate)
     return float(np.nanvar(rel - np.nanmean(rel, axis=0)[None], ddof=1))
 
+
+ADC_ROUNDING_VAR = 1.0 / 12.0  # counts^2
 
 #: Probe levels for the linear maps from noise variances to statistics (any level well above
 #: the simulation noise of the statistics and below where the robot would drive backwards).

@@ -195,3 +195,13 @@ def test_a_users_own_effect_is_scored_and_named_without_touching_the_workflow(tm
     truth, rep = run(tmp_path, "motion", "heading_bias", gs=replace(FAST, library=lib))
     assert rep["named_effects"] == ["my_turn"]
     assert "heading_bias" not in rep["steps"][0]["scores"]
+
+
+@pytest.mark.parametrize("hidden, named", [("", []), ("sensor_gain", ["sensor_gain"])])
+def test_a_sensor_without_noise_breaks_neither_the_tests_nor_the_likelihood(tmp_path, hidden, named):
+    """Readings without any noise (a nuisance that is zero in the data): nothing named on null
+    data, the gain named when robots differ."""
+    ds = tmp_path / "ds"
+    synth("light_sweep", hidden, ds, seed=1000, nuisance={"sensor_noise": 0.0})
+    rep = run_gap([str(ds)], tmp_path / "out", gs=FAST, log=lambda *a: None)
+    assert rep["named_effects"] == named and not rep["unexplained"]
