@@ -61,7 +61,19 @@ def _est_var_bias(ref, model, resim=None):
     if resim is not None and np.any(model.swarm.bias_trial_sd > 0):
         ref = resim(model.with_traits(bias_trial_sd=np.zeros(len(model.swarm))))
     b = _bias(ref["turn_rate"], model)  # (M, K, N)
-    return float(np.nanvar(b - _nanmean(b, axis=0)[None], ddof=1))
+    return _pooled_replicate_var(b)
+
+
+def _pooled_replicate_var(x):
+    """Variance over replicates (axis 0) of each (trial, robot), pooled over tracks, leaving out
+    tracks whose variance is over 10x the median: a replicate whose heading unwrapping failed on
+    a short, gappy track would otherwise swamp the pooled value (seen on noisy tracking)."""
+    with np.errstate(all="ignore"):
+        v = np.nanvar(x, axis=0, ddof=1)
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return 0.0
+    return float(np.mean(v[v <= 10 * np.median(v)]))
 
 
 # --- the base model (paper Eq. 4) ------------------------------------------------------------
@@ -138,8 +150,7 @@ def _est_var_rel(ref, model, resim=None):
     if resim is not None and np.any(model.swarm.clock_trial_sd > 0):
         ref = resim(model.with_traits(clock_trial_sd=np.zeros(len(model.swarm))))
     rate = ref["toggle_rate"]
-    rel = rate / np.nanmean(rate)
-    return float(np.nanvar(rel - np.nanmean(rel, axis=0)[None], ddof=1))
+    return _pooled_replicate_var(rate / np.nanmean(rate))
 
 
 ADC_ROUNDING_VAR = 1.0 / 12.0  # counts^2
