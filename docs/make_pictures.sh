@@ -11,9 +11,8 @@ BIN=${BIN:-.venv/bin}
 OUT=${OUT:-out/pictures}
 mkdir -p "$OUT" docs
 
-# 1. Fig. 5: phototaxis cost vs heading bias (41 robots x 20 runs per P_R, seed 2023).
-"$BIN/kilobot-twin" experiment phototaxis --quick --out "$OUT/phototaxis" --no-progress >/dev/null
-"$BIN/python" - "$OUT/phototaxis/fig5_phototaxis.png" docs/fig5_phototaxis.png 1100 <<'PY'
+shrink() {  # SRC DST: 1100 px wide, 256 colours (small PNGs for the README)
+    "$BIN/python" - "$1" "$2" 1100 <<'PY'
 import sys
 from PIL import Image
 src, dst, width = sys.argv[1], sys.argv[2], int(sys.argv[3])
@@ -22,6 +21,11 @@ im = im.resize((width, round(im.height * width / im.width)), Image.LANCZOS)
 im.quantize(colors=256, method=Image.MEDIANCUT, dither=Image.NONE).save(dst, optimize=True)
 print(dst)
 PY
+}
+
+# 1. Fig. 5: phototaxis cost vs heading bias (41 robots x 20 runs per P_R, seed 2023).
+"$BIN/kilobot-twin" experiment phototaxis --quick --out "$OUT/phototaxis" --no-progress >/dev/null
+shrink "$OUT/phototaxis/fig5_phototaxis.png" docs/fig5_phototaxis.png
 
 # 2. The viewer on the demo recording (arena in metres, light readings, metrics, traits).
 RRD=out/demo/latest/twin.rrd
@@ -34,13 +38,5 @@ if [ -n "${DISPLAY:-}" ]; then
 else
     xvfb-run -a -s "-screen 0 4000x2400x24" "$BIN/rerun" "$RRD" --screenshot-to "$SHOT" --window-size 1600x1000
 fi
-"$BIN/python" - "$SHOT" docs/viewer_demo.png 1100 <<'PY'
-import sys
-from PIL import Image
-src, dst, width = sys.argv[1], sys.argv[2], int(sys.argv[3])
-im = Image.open(src).convert("RGB")
-im = im.resize((width, round(im.height * width / im.width)), Image.LANCZOS)
-im.quantize(colors=256, method=Image.MEDIANCUT, dither=Image.NONE).save(dst, optimize=True)
-print(dst)
-PY
+shrink "$SHOT" docs/viewer_demo.png
 ls -l docs/fig5_phototaxis.png docs/viewer_demo.png
