@@ -54,6 +54,9 @@ def bench_realtime(tmp: Path, robots=200, duration=60.0, swarms=1):
     rep = run_twin("random_walk", robots=robots, duration=duration, seed=1, mode="realtime", out=str(tmp / "rt"),
                    install_signal_handlers=False, swarms=swarms)
     ss = rep.swarm_stats
+    if not ss:  # the swarm processes wrote no stats (killed, or the run never started)
+        print(f"realtime: {robots} robots in {swarms} swarm process(es): no swarm stats; problems: {rep.problems}")
+        return rep
     expected = robots * (int(round(duration / 0.1)) + 1)
     pub = ss["samples_published"]
     per_robot = ss["per_robot_samples"].values()
