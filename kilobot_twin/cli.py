@@ -7,7 +7,9 @@ exit code 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+from datetime import datetime, timezone
 from pathlib import Path
 
 from . import __version__
@@ -128,7 +130,23 @@ def bag_info(path: str) -> dict:
     from .recording.bag import BagReader
 
     reader = BagReader(path)
-    return {"counts": reader.counts(), "metadata": reader.metadata(), "skipped": reader.note}
+    log_ns = [m.log_time_ns for m in reader.messages()]
+    files = [f for f in Path(path).iterdir() if f.is_file()]
+    return {"counts": reader.counts(), "metadata": reader.metadata(), "skipped": reader.note,
+            "messages": len(log_ns), "size_bytes": sum(f.stat().st_size for f in files),
+            "log_start_ns": min(log_ns, default=None), "log_end_ns": max(log_ns, default=None)}
+
+
+def _metadata_value(v: str, width: int = 60) -> str:
+    """A metadata value for one line: as it is if short, else its kind and size (and keys)."""
+    if len(v) <= width:
+        return v
+    try:
+        doc = json.loads(v)
+    except ValueError:
+        return v[: width - 3] + "..."
+    keys = f": {', '.join(list(doc)[:6])}{', ...' if len(doc) > 6 else ''}" if isinstance(doc, dict) else ""
+    return f"<JSON {type(doc).__name__}, {len(v)} chars{keys}>"
 
 
 def view(source: str, out: str | None = None, spawn: bool = False, point: int = 0, run: int = 0) -> dict:
@@ -397,10 +415,17 @@ def _main(argv=None, caught=()) -> int:
                           f"skipped: {res['skipped'] or 'nothing'}")
             else:
                 info = bag_info(args.path)
+                span = ""
+                if info["log_start_ns"] is not None:
+                    t0, t1 = (datetime.fromtimestamp(t / 1e9, timezone.utc) for t in (info["log_start_ns"], info["log_end_ns"]))
+                    span = (f"; log time {(info['log_end_ns'] - info['log_start_ns']) / 1e9:.3f} s, "
+                            f"{t0:%Y-%m-%d %H:%M:%S} .. {t1:%H:%M:%S} UTC")
+                print(f"bag: {args.path}  ({info['size_bytes'] / 1e6:.2f} MB on disk; {info['messages']} messages on "
+                      f"{len(info['counts'])} topics{span})")
                 for topic, n in sorted(info["counts"].items()):
                     print(f"{topic:<40} {n}")
                 for name, meta in info["metadata"].items():
-                    print(f"metadata {name}: {', '.join(sorted(meta))}")
+                    print(f"metadata {name}: " + "; ".join(f"{k}={_metadata_value(v)}" for k, v in sorted(meta.items())))
         elif args.verb == "replay":
             res = replay(args.bag, args.rate, args.loop, args.topics, args.wait_for_subscribers)
             print(f"replayed {res['messages']} messages on {res['topics']} topics in {res['wall_s']:.2f} s; timing error "

@@ -64,6 +64,13 @@ def test_run_lockstep_bag_equals_batch_and_holds_run_metadata(tmp_path):
     np.testing.assert_array_equal(pts["id"][0], [0, 1, 2, 3])
     np.testing.assert_allclose(pts["x"].T, ref.traj["x"][0], rtol=0, atol=1e-12)
     np.testing.assert_array_equal(pts["led"].T, ref.traj["led"][0])
+    # `bag info` states size, messages, log time and the metadata's values (not only its keys).
+    info = cli("bag", "info", str(out))
+    assert info.returncode == 0, info.stderr
+    head = info.stdout.splitlines()[0]
+    assert f"{len(msgs)} messages on {len(counts)} topics" in head and "MB on disk" in head and "log time" in head, head
+    meta_line = next(ln for ln in info.stdout.splitlines() if ln.startswith("metadata kilobot_twin:"))
+    assert "seed=5" in meta_line and "mode=lockstep" in meta_line, meta_line
 
 
 def test_run_takes_a_scenario_file_with_an_image_light_field(tmp_path):
