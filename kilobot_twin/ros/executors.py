@@ -83,22 +83,28 @@ def spin_node(node, until=None) -> None:
 
 
 def run_node(prog: str, make_node, run=spin_node, on_exit=None, args=None) -> None:
-    """The life of every node process (the Jazzy pattern, once for all nodes).
+    """The life of every node process (the Jazzy pattern, once for all nodes); never returns.
 
     ``rclpy.init`` without rclpy's signal handlers; SIGINT and SIGTERM (any number of them, also
     to the whole process group, also during the cleanup) only set :data:`STOP`, which ends the
     spin loop (exit code 0: launch reports "finished cleanly"); build the node with
     ``make_node()``; ``run(node)`` (default: spin it); a bad parameter (:class:`ConfigError`)
-    ends it with one line and exit code 2; ``on_exit(node)`` (e.g. close a bag) and
-    ``destroy_node`` always run, with the context still up; then ``rclpy.try_shutdown``, and the
-    process ignores further SIGINT / SIGTERM while the interpreter exits.
+    ends it with one line and exit code 2, any other error with its traceback and exit code 1;
+    ``on_exit(node)`` (e.g. close a bag) and ``destroy_node`` always run, with the context still
+    up; then ``rclpy.try_shutdown`` and ``os._exit``: the interpreter's finalisation is skipped
+    (it once hung a swarm process for over a minute after its cleanup, in native destructors,
+    and it puts SIG_DFL back, so that a late second Ctrl-C killed processes with -SIGINT).
     """
+    import faulthandler
+    import sys
+    import traceback
+
     from ..errors import ConfigError
-    from . import params
 
     install_stop_handlers()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
+    code = 0
     try:
         if not STOP.is_set():
             node = make_node()
@@ -106,14 +112,25 @@ def run_node(prog: str, make_node, run=spin_node, on_exit=None, args=None) -> No
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass
     except ConfigError as exc:
-        params.report_and_exit(prog, exc)
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        code = ConfigError.exit_code
+    except BaseException:  # a crash: say where, and exit non-zero after the cleanup
+        traceback.print_exc()
+        code = 1
     finally:
-        if node is not None:
-            if on_exit is not None:
-                on_exit(node)
-            node.destroy_node()
-        rclpy.try_shutdown()
-        # Done: Python's finalisation puts Python-level handlers back to SIG_DFL, and a late
-        # second Ctrl-C would then kill the process with -SIGINT (launch: "process has died").
-        for sig in (signal.SIGINT, signal.SIGTERM):
+        for sig in (signal.SIGINT, signal.SIGTERM):  # nothing interrupts the cleanup
             signal.signal(sig, signal.SIG_IGN)
+        # A cleanup that hangs anyway is reported (every thread's stack) and ended after 60 s.
+        faulthandler.dump_traceback_later(60.0, exit=True)
+        try:
+            if node is not None:
+                if on_exit is not None:
+                    on_exit(node)
+                node.destroy_node()
+            rclpy.try_shutdown()
+        except BaseException:
+            traceback.print_exc()
+            code = code or 1
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)

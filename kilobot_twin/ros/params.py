@@ -3,7 +3,7 @@
 Parameters are declared with dynamic typing so that ``-p clock_rate:=1`` (an integer) is
 accepted for a float trait; every value then goes through the core's validators and a bad
 one raises :class:`~kilobot_twin.errors.ConfigError` naming the parameter. Node ``main``
-functions print that one line and exit with code 2 (:func:`report_and_exit`).
+functions print that one line and exit with code 2 (:func:`kilobot_twin.ros.executors.run_node`).
 
 Parameters are read-only unless declared otherwise: ``ros2 param set`` on them is refused
 (what a node read at start-up would not change). A robot's traits and behaviour can change at
@@ -13,7 +13,6 @@ run time (see :class:`~kilobot_twin.nodes.robot.RobotNode`), through the same va
 from __future__ import annotations
 
 import dataclasses
-import sys
 from typing import Any
 
 from rcl_interfaces.msg import ParameterDescriptor
@@ -129,9 +128,3 @@ def behavior_overrides(behavior) -> list[tuple[str, Any]]:
     vals = behavior_to_values(behavior)
     kind = vals.pop("kind")
     return [("behavior", kind)] + [(f"{kind}.{k}", v) for k, v in vals.items()]
-
-
-def report_and_exit(prog: str, exc: BaseException) -> None:
-    """Print the one-line error of a bad parameter and exit with code 2."""
-    print(f"{prog}: error: {exc}", file=sys.stderr)
-    sys.exit(ConfigError.exit_code)
