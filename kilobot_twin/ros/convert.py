@@ -40,7 +40,7 @@ from sensor_msgs.msg import Illuminance, Image, PointCloud2, PointField, TimeRef
 from std_msgs.msg import ColorRGBA, String
 
 from ..core.constants import LED_BLUE, LED_OFF, LED_RED
-from ..core.traits import RobotTraits, traits_from_mapping
+from ..core.traits import RobotTraits
 
 FRAME_ID = "arena"
 NS_PER_S = 1_000_000_000
@@ -395,12 +395,6 @@ def traits_to_msg(robot_id: int, traits: RobotTraits, behavior: Mapping[str, Any
 
     return String(data=json.dumps({"id": int(robot_id), "traits": asdict(traits), "behavior": dict(behavior),
                                    "seed": int(seed), "run": int(run)}, sort_keys=True))
-
-
-def traits_from_msg(msg: String) -> tuple[int, RobotTraits, dict]:
-    """(robot id, traits, the whole document) from a ``traits`` message."""
-    doc = json.loads(msg.data)
-    return int(doc["id"]), traits_from_mapping(doc["traits"], "traits."), doc
 
 
 # --- the world ----------------------------------------------------------------------------------
