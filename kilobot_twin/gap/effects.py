@@ -12,6 +12,7 @@ summaries alike and cancels in the ratio or difference.
 
 from __future__ import annotations
 
+import abc
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,9 +29,12 @@ class TwinModel:
     kind: str
     swarm: SwarmTraits
     named: list = field(default_factory=list)
+    #: relative trial-to-trial jitter of every robot's speed (a nuisance the core does not carry)
+    speed_trial_sd: float = 0.0
 
-    def with_traits(self, **arrays) -> "TwinModel":
-        return TwinModel(self.kind, self.swarm.with_values(**arrays), list(self.named))
+    def with_traits(self, speed_trial_sd: float | None = None, **arrays) -> "TwinModel":
+        sts = self.speed_trial_sd if speed_trial_sd is None else float(speed_trial_sd)
+        return TwinModel(self.kind, self.swarm.with_values(**arrays), list(self.named), sts)
 
 
 def _nanmean(a, axis=None):
@@ -57,7 +61,19 @@ def _est_var_bias(ref, model, resim=None):
     if resim is not None and np.any(model.swarm.bias_trial_sd > 0):
         ref = resim(model.with_traits(bias_trial_sd=np.zeros(len(model.swarm))))
     b = _bias(ref["turn_rate"], model)  # (M, K, N)
-    return float(np.nanvar(b - _nanmean(b, axis=0)[None], ddof=1))
+    return _pooled_replicate_var(b)
+
+
+def _pooled_replicate_var(x):
+    """Variance over replicates (axis 0) of each (trial, robot), pooled over tracks, leaving out
+    tracks whose variance is over 10x the median: a replicate whose heading unwrapping failed on
+    a short, gappy track would otherwise swamp the pooled value (seen on noisy tracking)."""
+    with np.errstate(all="ignore"):
+        v = np.nanvar(x, axis=0, ddof=1)
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return 0.0
+    return float(np.mean(v[v <= 10 * np.median(v)]))
 
 
 # --- the base model (paper Eq. 4) ------------------------------------------------------------
@@ -74,27 +90,59 @@ def nominal_model(kind: str, robot_ids) -> TwinModel:
     return TwinModel(kind, SwarmTraits(np.asarray(robot_ids), tr))
 
 
-def fit_base(model: TwinModel, meas: dict, ref: dict) -> TwinModel:
-    """Identical robots whose population parameters (and, for motion, the per-trial turn-rate
-    spread sigma of Eq. 4) are fitted to the data; the white-noise level stays nominal."""
+def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinModel | None = None) -> TwinModel:
+    """Identical robots whose population parameters and every nuisance are fitted to the data.
+
+    motion: speed level; heading-noise and speed-noise intensities (:func:`fit_noise_levels`,
+    within-robot statistics only); the mean bias and its trial-to-trial spread (Eq. 4-6).
+    light_sweep: gain, offset and reading noise. blink: clock rate and its trial-to-trial
+    spread. Tracking noise, glitches and late starts are fitted where the data is read
+    (:func:`kilobot_twin.gap.model.measured_summaries`). Without ``resim`` (no simulations
+    at hand) the noise levels stay as given; with ``noise`` (a model whose noise levels were
+    fitted already, on all trials) they are taken from it: population noise levels barely move
+    when one trial is held out, and refitting them per fold costs four simulations each.
+    """
     n = len(model.swarm)
     if model.kind == "motion":
         sf = np.full(n, np.nanmean(meas["speed"]) / np.nanmean(ref["speed"]) * model.swarm.speed_factor.mean())
-        m = model.with_traits(speed_factor=sf)
+        m = model.with_traits(speed_factor=sf, bias_drift=np.zeros(n))
         b = _bias(meas["turn_rate"], m)
+        m = m.with_traits(heading_bias=np.full(n, np.nanmean(b)))
+        if noise is not None:
+            m = m.with_traits(sigma_omega=noise.swarm.sigma_omega, sigma_v=noise.swarm.sigma_v,
+                              speed_trial_sd=noise.speed_trial_sd)
+        elif resim is not None:
+            m = fit_noise_levels(m, meas, resim)
+        if resim is not None:
+            ref = resim(m.with_traits(bias_trial_sd=np.zeros(n)))
+        # Identical robots (Eq. 4): all of the bias's spread beyond noise is trial-to-trial.
         spread = max(float(np.nanvar(b, ddof=1)) - _est_var_bias(ref, m), 0.0)
-        return m.with_traits(heading_bias=np.full(n, np.nanmean(b)), bias_trial_sd=np.full(n, np.sqrt(spread)),
-                             bias_drift=np.zeros(n))
+        return m.with_traits(bias_trial_sd=np.full(n, np.sqrt(spread)))
     if model.kind == "light_sweep":
         g = model.swarm.sensor_gain.mean() * np.nanmean(meas["gain"]) / np.nanmean(ref["gain"])
         o = model.swarm.sensor_offset.mean() + np.nanmean(meas["offset"]) - np.nanmean(ref["offset"])
-        return model.with_traits(sensor_gain=np.full(n, g), sensor_offset=np.full(n, o))
+        m = model.with_traits(sensor_gain=np.full(n, g), sensor_offset=np.full(n, o))
+        if noise is not None:
+            m = m.with_traits(sensor_noise=noise.swarm.sensor_noise)
+        elif resim is not None:
+            # The residual variance about each sweep's line is the reading noise's variance plus
+            # what the line does not follow (the ceiling's bend): linear in noise^2.
+            r0 = np.nanmean(resim(m.with_traits(sensor_noise=np.zeros(n)))["residual_sd"] ** 2)
+            r1 = np.nanmean(resim(m.with_traits(sensor_noise=np.full(n, PROBE["sensor_noise"])))["residual_sd"] ** 2)
+            target = np.nanmean(meas["residual_sd"] ** 2)
+            noise2 = PROBE["sensor_noise"] ** 2 * max(target - r0, 0.0) / max(r1 - r0, 1e-12)
+            # Never below the ADC's own rounding (1-count steps: variance 1/12): a sensor
+            # without noise still reads integers, and a noiseless model would make every
+            # simulated sweep identical, its null spread 0 and any difference infinitely significant.
+            m = m.with_traits(sensor_noise=np.full(n, np.sqrt(max(noise2, ADC_ROUNDING_VAR))))
+        return m
     # Identical clocks; the spread of trial rates (Eq. 4's sigma for clocks) is fitted.
     c = model.swarm.clock_rate.mean() * np.nanmean(meas["toggle_rate"]) / np.nanmean(ref["toggle_rate"])
+    m = model.with_traits(clock_rate=np.full(n, c))
     rel = meas["toggle_rate"] / np.nanmean(meas["toggle_rate"])
-    est = _est_var_rel(ref, model)
-    spread = max(float(np.nanvar(rel, ddof=1)) - est, 0.0)
-    return model.with_traits(clock_rate=np.full(n, c), clock_trial_sd=np.full(n, np.sqrt(spread)))
+    est = _est_var_rel(resim(m.with_traits(clock_trial_sd=np.zeros(n))) if resim is not None else ref, m)
+    spread = max(float(np.nanvar(rel, ddof=1)) - est, 0.0)  # identical clocks: all spread is per trial
+    return m.with_traits(clock_trial_sd=np.full(n, np.sqrt(spread)))
 
 
 def _est_var_rel(ref, model, resim=None):
@@ -102,13 +150,58 @@ def _est_var_rel(ref, model, resim=None):
     if resim is not None and np.any(model.swarm.clock_trial_sd > 0):
         ref = resim(model.with_traits(clock_trial_sd=np.zeros(len(model.swarm))))
     rate = ref["toggle_rate"]
-    rel = rate / np.nanmean(rate)
-    return float(np.nanvar(rel - np.nanmean(rel, axis=0)[None], ddof=1))
+    return _pooled_replicate_var(rate / np.nanmean(rate))
+
+
+ADC_ROUNDING_VAR = 1.0 / 12.0  # counts^2
+
+#: Probe levels for the linear maps from noise variances to statistics (any level well above
+#: the simulation noise of the statistics and below where the robot would drive backwards).
+PROBE = {"sigma_omega": 0.02, "sigma_v": 0.001, "speed_trial_sd": 0.03, "sensor_noise": 8.0}
+
+
+def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
+    """Population noise levels from within-robot statistics: heading-noise intensity
+    sigma_omega, speed-noise intensity sigma_v (within a trial) and the relative trial-to-trial
+    speed jitter.
+
+    The three statistics of :func:`_noise_stats` (mean heading diffusion; pooled within-robot
+    variance of trial speeds; mean speed diffusion within tracks) are each linear in the three
+    variances: each noise adds its variance to what the statistic measures, tracking noise and
+    detrending form the intercept. Four simulations (no noise, each noise at a probe level) give
+    the map; a non-negative least-squares solve gives the variances, so a noise that is absent
+    from the data comes out 0 rather than breaking the fit.
+    """
+    from scipy.optimize import nnls
+
+    n = len(model.swarm)
+    z = model.with_traits(sigma_omega=np.zeros(n), sigma_v=np.zeros(n), bias_trial_sd=np.zeros(n), speed_trial_sd=0.0)
+    pw, pv, ps = PROBE["sigma_omega"], PROBE["sigma_v"], PROBE["speed_trial_sd"]
+    s0 = np.nanmean(_noise_stats(resim(z)), axis=0)
+    s1 = np.nanmean(_noise_stats(resim(z.with_traits(sigma_omega=np.full(n, pw)))), axis=0)
+    s2 = np.nanmean(_noise_stats(resim(z.with_traits(sigma_v=np.full(n, pv)))), axis=0)
+    s3 = np.nanmean(_noise_stats(resim(z.with_traits(speed_trial_sd=ps))), axis=0)
+    A = np.column_stack([(s1 - s0) / pw**2, (s2 - s0) / pv**2, (s3 - s0) / ps**2])
+    target = _noise_stats(meas) - s0
+    # Scale rows so the statistics weigh alike (they differ by orders of magnitude).
+    w = 1.0 / np.maximum(np.abs(A).max(axis=1), 1e-30)
+    var, _ = nnls(A * w[:, None], target * w)
+    return model.with_traits(sigma_omega=np.full(n, np.sqrt(var[0])), sigma_v=np.full(n, np.sqrt(var[1])),
+                             speed_trial_sd=float(np.sqrt(var[2])))
 
 
 # --- named effects ---------------------------------------------------------------------------------
 
-class Effect:
+class Effect(abc.ABC):
+    """A named effect the workflow can add to the twin (like a pysindy feature library entry).
+
+    Subclass it, give ``name``, ``kind`` (the data it explains: motion, light_sweep, blink),
+    ``predicts`` and ``fit``, and pass it in ``GapSettings(library=...)``: the workflow scores
+    every effect of the library the same way (held-out likelihood of simulations of the fitted
+    model), so adding one needs no change to the workflow. ``simulate`` is the fitted model's
+    simulation under the data's conditions (the twin's, by default).
+    """
+
     name = ""
     kind = ""
     extends: tuple = ()  # effects this one contains as a special case (nested models)
@@ -118,10 +211,16 @@ class Effect:
     #: of the predictive variance (see :func:`leverage`).
     predicts: dict = {}
 
-    def fit(self, model: TwinModel, meas: dict, ref: dict, resim=None) -> TwinModel:  # pragma: no cover
+    @abc.abstractmethod
+    def fit(self, model: TwinModel, meas: dict, ref: dict, resim=None) -> TwinModel:
         """Fit on ``meas`` (summaries of some trials) given ``ref`` (summaries of the current model
         simulated under the same trials); ``resim(model)`` simulates another model there."""
-        raise NotImplementedError
+
+    def simulate(self, cond, model: TwinModel, M: int, seed: int, trials=None) -> dict:
+        """Summaries of M replicates of the fitted model under the data's conditions (M, K', N)."""
+        from .model import simulate
+
+        return simulate(cond, model, M, seed, trials)
 
 
 class HeadingBias(Effect):
@@ -175,44 +274,45 @@ class SpeedHeterogeneity(Effect):
 
 
 def _noise_stats(s):
-    """Two statistics proportional to the noise variance, per replicate (leading axes):
-    mean heading diffusion, and pooled within-robot variance of the trial speeds (immune to
-    per-robot speed differences)."""
+    """Three statistics, each linear in the noise variances, per replicate (leading axes): mean
+    heading diffusion, pooled within-robot variance of the trial speeds (immune to per-robot
+    speed differences) and mean speed diffusion within tracks."""
     with np.errstate(all="ignore"):
         d = np.nanmean(s["diffusion"], axis=(-2, -1))
         v = s["speed"]
         dev = v - np.nanmean(v, axis=-2, keepdims=True)
         dof = np.maximum((np.isfinite(v).sum(-2) - 1).sum(-1), 1)
         w = np.nansum(dev**2, axis=(-2, -1)) / dof
-    return np.stack([d, w], axis=-1)
+        sd = np.nanmean(s["speed_diffusion"], axis=(-2, -1))
+    return np.stack([d, w, sd], axis=-1)
 
 
 class MotionNoise(Effect):
-    """The population's actuation-noise levels (white heading and speed noise) are refitted.
+    """Robots differ in their noise intensity: a per-robot heading-noise intensity (an individual
+    trait, as the paper's robots are individuals), around the population level the base fits.
 
-    Two population scales, one per noise process: sigma_omega from the heading diffusion,
-    sigma_v from the within-robot spread of trial speeds (both grow with their noise's
-    variance). Each is moved by the square root of its measured/simulated ratio; a few
-    fixed-point steps with re-simulation absorb what is not proportional (tracking noise,
-    detrending, heading noise shortening the lagged displacement).
+    Each robot's mean heading diffusion over its trials is linear in its sigma_omega^2 (see
+    :func:`fit_noise_levels`): the intercept (tracking noise and the rest) comes from a simulation
+    without heading noise, the slope from the current model's simulation.
     """
 
     name, kind = "motion_noise", "motion"
-    predicts = {"diffusion": "pop"}
+    predicts = {"diffusion": "mean"}
 
-    def fit(self, model, meas, ref, resim=None, iterations=3):
-        target = _noise_stats(meas)  # (diffusion, within-robot speed variance)
-        m, cur = model, ref
-        for _ in range(iterations if resim is not None else 1):
-            ratio = np.clip(target / np.nanmean(_noise_stats(cur), axis=0), 1e-4, 1e4)
-            scale = np.sqrt(ratio)  # variance ratio -> sd scale, per process
-            m = m.with_traits(sigma_omega=m.swarm.sigma_omega * scale[0], sigma_v=m.swarm.sigma_v * scale[1])
-            if resim is not None:
-                cur = resim(m)
+    def fit(self, model, meas, ref, resim=None):
+        n = len(model.swarm)
+        s2 = model.swarm.sigma_omega**2
+        if resim is None or not np.any(s2 > 0):
+            return model
+        c = np.nanmean(resim(model.with_traits(sigma_omega=np.zeros(n)))["diffusion"])
+        slope = (np.nanmean(ref["diffusion"]) - c) / np.mean(s2)
+        d_i = _nanmean(meas["diffusion"], axis=0)
+        var_i = np.where(np.isfinite(d_i), np.maximum(d_i - c, 0.0) / max(slope, 1e-30), np.mean(s2))
+        m = model.with_traits(sigma_omega=np.sqrt(var_i))
         # The trial-to-trial bias spread keeps only what the new noise does not already explain.
         b = _bias(meas["turn_rate"], m)
-        spread = max(_within_var(b) - _est_var_bias(cur, m, resim), 0.0) if resim is not None else 0.0
-        return m.with_traits(bias_trial_sd=np.full(len(model.swarm), np.sqrt(spread)))
+        spread = max(_within_var(b) - _est_var_bias(ref, m, resim), 0.0)
+        return m.with_traits(bias_trial_sd=np.full(n, np.sqrt(spread)))
 
 
 class SensorGain(Effect):
@@ -221,10 +321,24 @@ class SensorGain(Effect):
     name, kind = "sensor_gain", "light_sweep"
     predicts = {"gain": "mean", "offset": "mean"}
 
-    def fit(self, model, meas, ref, resim=None):
+    def fit(self, model, meas, ref, resim=None, iterations=2):
+        """Ratio (gain) and difference (offset) of each robot's measured summary to the simulated
+        one; then, with ``resim``, fixed-point steps against each robot's own simulation: the
+        saturation knee makes the summarised gain a slightly non-linear function of the trait
+        (fewer samples below the knee at high gain), which a single ratio to the population's
+        simulation leaves as a bias that grows with the robot's distance from the population."""
         g = model.swarm.sensor_gain * _nanmean(meas["gain"], axis=0) / _nanmean(ref["gain"], axis=(0, 1))
         o = model.swarm.sensor_offset + _nanmean(meas["offset"], axis=0) - _nanmean(ref["offset"], axis=(0, 1))
-        return model.with_traits(sensor_gain=g, sensor_offset=o)
+        m = model.with_traits(sensor_gain=g, sensor_offset=o)
+        for _ in range(iterations if resim is not None else 0):
+            sim = resim(m)
+            mg, mo = _nanmean(meas["gain"], axis=0), _nanmean(meas["offset"], axis=0)
+            sg, so = _nanmean(sim["gain"], axis=(0, 1)), _nanmean(sim["offset"], axis=(0, 1))
+            ok = np.isfinite(mg) & np.isfinite(sg)
+            g = np.where(ok, m.swarm.sensor_gain * mg / np.where(ok, sg, 1.0), m.swarm.sensor_gain)
+            o = np.where(ok, m.swarm.sensor_offset + mo - so, m.swarm.sensor_offset)
+            m = m.with_traits(sensor_gain=g, sensor_offset=o)
+        return m
 
 
 class ClockDrift(Effect):
@@ -241,12 +355,13 @@ class ClockDrift(Effect):
 
 
 #: What :func:`fit_base` estimates from the data, per kind (population levels only).
-BASE_PREDICTS = {"motion": {"turn_rate": "pop", "speed": "pop"}, "light_sweep": {"gain": "pop", "offset": "pop"},
+BASE_PREDICTS = {"motion": {"turn_rate": "pop", "speed": "pop", "diffusion": "pop"}, "light_sweep": {"gain": "pop", "offset": "pop"},
                  "blink": {"toggle_rate": "pop"}}
 _RANK = {None: 0, "pop": 1, "mean": 2, "line": 3}
 
 
-def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit_base: bool = True):
+def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit_base: bool = True,
+             library: dict | None = None):
     """Estimation part of the predictive variance of trial ``k``'s summary, as a multiple of
     one trial's simulated variance: ``(h_track, h_level)`` for one robot's summary and for the
     mean over robots.
@@ -262,7 +377,7 @@ def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit
     """
     how = BASE_PREDICTS.get(kind, {}).get(component) if fit_base else None
     for name in names:
-        p = LIBRARY[name].predicts.get(component)
+        p = (LIBRARY if library is None else library)[name].predicts.get(component)
         if _RANK[p] > _RANK[how]:
             how = p
     t = np.asarray(train, dtype=float)
@@ -278,9 +393,21 @@ def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit
     return h, h
 
 
+class Summaries(dict):
+    """Per-(trial, robot) summaries (name -> (K', N) array) of some trials of a dataset, and
+    which trials they are (``trials``, (K',)): a line over trial index needs them."""
+
+    def __init__(self, arrays: dict, trials):
+        super().__init__(arrays)
+        self.trials = np.asarray(trials)
+
+
 def _trial_index(meas):
-    """(K', 1) trial indices of the measured summaries (stored under the '_trials' key)."""
-    return np.asarray(meas["_trials"], dtype=float)[:, None]
+    """(K', 1) trial indices of the measured summaries (0..K'-1 when not given)."""
+    trials = getattr(meas, "trials", None)
+    if trials is None:
+        trials = np.arange(len(meas["turn_rate"]))
+    return np.asarray(trials, dtype=float)[:, None]
 
 
 LIBRARY: dict[str, Effect] = {e.name: e for e in (HeadingBias(), SpeedHeterogeneity(), BiasDrift(), MotionNoise(),

@@ -46,11 +46,16 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
     if kind == "motion":
         _, x = ds.grid("x_m")
         _, y = ds.grid("y_m")
+        # Nuisances of the tracker are fitted to the data, not taken from meta or nominal values:
+        # its noise level, its glitches and the robots' late starts.
+        noise = summaries.tracking_noise(x, y)
+        x, y, _ = summaries.reject_glitches(x, y, noise)
+        noise = summaries.tracking_noise(x, y)
+        x, y = summaries.mask_before_onset(x, y, noise)
         observed = np.isfinite(x)
         s = summaries.motion(x, y, ds.dt_s)
         start = _start_poses(x, y, ds.dt_s)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, ds.dt_s, observed, start,
-                          float(ds.meta.get("tracking_noise_m", 0.002)))
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, ds.dt_s, observed, start, noise)
     elif kind == "light_sweep":
         _, st = ds.grid("stimulus")
         _, rd = ds.grid("reading")
@@ -86,12 +91,17 @@ def _start_poses(x, y, dt_s, lag_s=2.0):
     return x0, y0, th0
 
 
-def simulate(cond: Conditions, swarm: SwarmTraits, M: int, seed: int, trials=None, floor_tilt=None) -> dict:
+def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt=None) -> dict:
     """M replicates of the swarm under the conditions; summaries shaped (M, K', N).
 
+    ``swarm`` is a :class:`SwarmTraits` or a model carrying one (``.swarm``) and population
+    nuisances the core does not model (``.speed_trial_sd``: a robot's speed jitters from trial
+    to trial by this relative sd; applied by scaling each track's displacement from its start).
     ``trials`` restricts to a subset of trial indices (K' of them). Replicate m of trial k is
     global run ``m * K + k`` so that replicates are independent and reproducible.
     """
+    speed_trial_sd = float(getattr(swarm, "speed_trial_sd", 0.0))
+    swarm = getattr(swarm, "swarm", swarm)
     trials = np.arange(cond.trials) if trials is None else np.asarray(trials)
     Kp = len(trials)
     runs = (np.arange(M)[:, None] * cond.trials + trials[None, :]).reshape(-1)
@@ -103,8 +113,13 @@ def simulate(cond: Conditions, swarm: SwarmTraits, M: int, seed: int, trials=Non
         x0, y0, th0 = (np.tile(a[trials], (M, 1)) for a in cond.start)
         res = sim.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, poses=(x0, y0, th0))
         T = mask.shape[-1]
-        x = res.traj["x"][..., :T] + cond.tracking_noise_m * rng.standard_normal(mask.shape)
-        y = res.traj["y"][..., :T] + cond.tracking_noise_m * rng.standard_normal(mask.shape)
+        x, y = res.traj["x"][..., :T], res.traj["y"][..., :T]
+        if speed_trial_sd > 0:
+            f = 1.0 + speed_trial_sd * rng.standard_normal(x.shape[:-1] + (1,))
+            x = x[..., :1] + f * (x - x[..., :1])
+            y = y[..., :1] + f * (y - y[..., :1])
+        x = x + cond.tracking_noise_m * rng.standard_normal(mask.shape)
+        y = y + cond.tracking_noise_m * rng.standard_normal(mask.shape)
         s = summaries.motion(np.where(mask, x, np.nan), np.where(mask, y, np.nan), cond.dt_s)
     elif cond.kind == "light_sweep":
         sc = synth.light_scenario(cond.duration_s, cond.dt_s)

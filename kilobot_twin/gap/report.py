@@ -31,6 +31,14 @@ def write_markdown(out: Path, report: dict, sections: list) -> Path:
             lines.append(f"| {i + 1} | {st['name']} | {sc['loglik_gain']:.1f} ({sc['ci95'][0]:.1f} .. {sc['ci95'][1]:.1f}) | "
                          f"{ru['name']} | {ru['loglik_gain_over_it'] if ru['loglik_gain_over_it'] is None else round(ru['loglik_gain_over_it'], 1)} "
                          f"({ru['ci95'][0]:.1f} .. {ru['ci95'][1]:.1f}) | {st['gap_after']:.2f} |")
+        for i, st in enumerate(s["steps"]):
+            if st["runner_up"].get("why_this_one"):
+                lines.append(f"\nStep {i + 1}: the runner-up shown is {st['runner_up']['why_this_one']}.")
+        if s.get("minimum_detectable"):
+            lines += ["", "What this dataset can see (detection with 80 % power; nothing named means nothing larger):"]
+            for eff, v in s["minimum_detectable"].items():
+                lines.append(f"- {eff}: {v['size']:.3g} ({v['unit']})")
+        lines += ["", "Nuisances fitted by the base model: " + ", ".join(f"{k} {v:.3g}" for k, v in s.get("nuisances", {}).items()), ""]
         fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
         res = s["_residuals"]
         x = np.arange(len(s["robots"]))
@@ -45,6 +53,7 @@ def write_markdown(out: Path, report: dict, sections: list) -> Path:
             v, (lo, hi) = s[key]["value"], s[key]["ci95"]
             axes[1].bar(k, v, color=col, yerr=[[max(v - lo, 0)], [max(hi - v, 0)]], capsize=6)
         axes[1].set_xticks([0, 1], ["before", "after"])
+        axes[1].set_ylabel("gap (excess mean z^2, 0 = model noise)")
         axes[1].set_title("gap with 95 % interval")
         names = sorted({n for st in s["steps"] for n in st["scores"]})  # one axis for every step
         width = 0.8 / max(len(s["steps"]), 1)
@@ -54,6 +63,8 @@ def write_markdown(out: Path, report: dict, sections: list) -> Path:
                         label=f"step {i + 1}: named {st['name']}")
         axes[2].set_xticks(np.arange(len(names)), names, rotation=20, fontsize=7)
         axes[2].axhline(0, color="k", lw=0.5)
+        axes[2].set_xlabel("candidate effect")
+        axes[2].set_ylabel("held-out log-likelihood gain")
         axes[2].set_title("candidate scores (held-out log-lik gain)")
         if s["steps"]:
             axes[2].legend(fontsize=7)

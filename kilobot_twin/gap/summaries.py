@@ -37,7 +37,7 @@ def _lagged_msd(r, ok, lag):
     return np.where(m, d * d, 0.0).sum(-1) / np.maximum(m.sum(-1), 1)
 
 
-def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0)) -> dict:
+def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0), speed_lags_s=(1.0, 5.0)) -> dict:
     """Turn rate, speed, heading diffusion and mean heading of every track.
 
     Headings are those of displacements over ``lag_s`` (long against tracking noise). They
@@ -47,7 +47,8 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0
     ``diffusion`` (rad^2/s) is the growth rate of the detrended heading's mean squared change
     between the two ``msd_lags_s``: tracking noise adds the same constant at both lags and
     cancels, the robot's heading noise (sigma_omega^2 per second) does not.
-    ``heading`` is the circular mean heading. (For single tracks with irregular sample times,
+    ``heading`` is the circular mean heading. ``speed_diffusion`` (m^2/s) is the growth rate of the
+    variance of the distance covered over ``speed_lags_s``: the speed noise's sigma_v^2. (For single tracks with irregular sample times,
     :func:`kilobot_twin.analysis.turn_rate_from_track` does the turn rate and speed.)
     """
     L = max(1, int(round(lag_s / dt_s)))
@@ -72,10 +73,118 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0
     diffusion = (_lagged_msd(resid, ok, l2) - _lagged_msd(resid, ok, l1)) / ((l2 - l1) * dt_s)
     okd = np.isfinite(dist)
     speed = np.where(okd, dist, 0.0).sum(axis=-1) / np.maximum(okd.sum(axis=-1), 1) / (L * dt_s)
+    # Speed noise within a track: the variance of the distance covered over a lag grows by
+    # sigma_v^2 per second of lag; tracking noise adds the same at both lags and cancels.
+    s1, s2 = (max(1, int(round(s / dt_s))) for s in speed_lags_s)
+    var_d = []
+    for lag in (s1, s2):
+        dd = np.hypot(x[..., lag:] - x[..., :-lag], y[..., lag:] - y[..., :-lag])
+        ok_d = np.isfinite(dd)
+        nd = np.maximum(ok_d.sum(-1), 2)
+        md = np.where(ok_d, dd, 0.0).sum(-1) / nd
+        var_d.append(np.where(ok_d, (dd - md[..., None]) ** 2, 0.0).sum(-1) / (nd - 1))
+    speed_diffusion = (var_d[1] - var_d[0]) / ((s2 - s1) * dt_s)
     heading = np.arctan2(np.where(ok, np.sin(h), 0).sum(-1), np.where(ok, np.cos(h), 0).sum(-1))
     bad = n < 10
-    out = {"turn_rate": turn, "speed": speed, "diffusion": diffusion, "heading": heading}
+    out = {"turn_rate": turn, "speed": speed, "diffusion": diffusion, "heading": heading,
+           "speed_diffusion": speed_diffusion}
     return {k: np.where(bad, np.nan, v) for k, v in out.items()}
+
+
+def _second_difference(a):
+    """a[j] - (a[j-1] + a[j+1]) / 2 where all three samples are observed, else NaN; (..., T)."""
+    d = np.full(a.shape, np.nan)
+    d[..., 1:-1] = a[..., 1:-1] - 0.5 * (a[..., :-2] + a[..., 2:])
+    return d
+
+
+def tracking_noise(x, y) -> float:
+    """Position noise sd (m) of the tracker, from within-track statistics only.
+
+    Over one frame a robot's path is straight to well below a millimetre, so the second
+    difference ``p[j] - (p[j-1] + p[j+1]) / 2`` of an observed triple is tracking noise with
+    variance 1.5 sd^2 per coordinate. Median absolute deviation (x 1.4826), so that glitches
+    (heavy-tailed, centimetres) do not count.
+    """
+    d = np.concatenate([_second_difference(x).ravel(), _second_difference(y).ravel()])
+    d = d[np.isfinite(d)]
+    if d.size < 10:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(1.5))
+
+
+def _interp_residual(a, max_span: int = 6):
+    """a[j] minus the straight line between its previous and next *observed* samples (at most
+    ``max_span`` frames apart, else NaN): the second difference across tracking gaps; (..., T)."""
+    T = a.shape[-1]
+    ok = np.isfinite(a)
+    idx = np.arange(T)
+    prev_i = np.where(ok, idx, -1)
+    prev_i = np.maximum.accumulate(prev_i, axis=-1)
+    prev_i = np.concatenate([np.full(a.shape[:-1] + (1,), -1), prev_i[..., :-1]], axis=-1)
+    next_i = np.where(ok, idx, T)
+    next_i = np.minimum.accumulate(next_i[..., ::-1], axis=-1)[..., ::-1]
+    next_i = np.concatenate([next_i[..., 1:], np.full(a.shape[:-1] + (1,), T)], axis=-1)
+    valid = ok & (prev_i >= 0) & (next_i < T) & (next_i - prev_i <= max_span)
+    pa = np.take_along_axis(a, np.clip(prev_i, 0, T - 1), -1)
+    na = np.take_along_axis(a, np.clip(next_i, 0, T - 1), -1)
+    w = (idx - prev_i) / np.maximum(next_i - prev_i, 1)
+    out = np.where(valid, a - (pa + w * (na - pa)), np.nan)
+    # Track ends (first or last observed sample): extrapolate the two observed samples beside
+    # it; that residual has sd 2x the interior one's (6 vs 1.5 noise variances), so it is halved.
+    for near, far_of in ((next_i, next_i), (prev_i, prev_i)):
+        inside = (near >= 0) & (near < T)
+        n1 = np.clip(near, 0, T - 1)
+        n2 = np.take_along_axis(far_of, n1, -1)
+        ok2 = ok & inside & (n2 >= 0) & (n2 < T) & (np.abs(n2 - idx) <= max_span) & np.isnan(out)
+        a1 = np.take_along_axis(a, n1, -1)
+        a2 = np.take_along_axis(a, np.clip(n2, 0, T - 1), -1)
+        d1, d2 = (idx - n1), (n1 - n2)
+        pred = a1 + (a1 - a2) * d1 / np.where(d2 == 0, 1, d2)
+        out = np.where(ok2, 0.5 * (a - pred), out)
+    return out
+
+
+def reject_glitches(x, y, noise_m: float, k: float = 4.5, floor_m: float = 0.001, rounds: int = 3):
+    """Remove heavy-tailed tracking glitches: a sample farther than ``k`` x its expected sd
+    (``sqrt(1.5) noise_m`` per coordinate, floored at ``floor_m``) from the line through its
+    observed neighbours (2-D distance), and the farthest of its neighbourhood (a glitch of size
+    G shows as G at its frame and about G/2 at each neighbour). Repeated ``rounds`` times (a
+    glitch next to a glitch). Returns copies with those samples NaN and how many were removed.
+    A Gaussian sample is removed with probability below exp(-k^2 / 2) = 4e-5."""
+    thr = k * max(np.sqrt(1.5) * noise_m, floor_m)
+    x, y = x.copy(), y.copy()
+    total = 0
+    pad = np.zeros(x.shape[:-1] + (2,))
+    for _ in range(rounds):
+        dn = np.nan_to_num(np.hypot(_interp_residual(x), _interp_residual(y)), nan=0.0)
+        p = np.concatenate([pad, dn, pad], axis=-1)
+        T = dn.shape[-1]
+        neigh = np.max(np.stack([p[..., i:i + T] for i in (0, 1, 3, 4)]), axis=0)
+        bad = (dn > thr) & (dn >= neigh)
+        if not bad.any():
+            break
+        total += int(bad.sum())
+        x[bad] = np.nan
+        y[bad] = np.nan
+    return x, y, total
+
+
+def mask_before_onset(x, y, noise_m: float, move_m: float = 0.004):
+    """NaN the samples before a robot starts moving (robots start late in real trials).
+
+    Onset: the first sample farther than ``move_m + 4 noise_m`` from the track's first observed
+    position. Applied to measured tracks only; the simulated twin then sees the same missing
+    samples (the workflow's mask), so both are summarised over the same moving part."""
+    first_i = np.argmax(np.isfinite(x), axis=-1)[..., None]
+    x0 = np.take_along_axis(x, first_i, -1)
+    y0 = np.take_along_axis(y, first_i, -1)
+    far = np.hypot(x - x0, y - y0) > move_m + 4 * noise_m
+    started = np.maximum.accumulate(np.nan_to_num(far.astype(float)), axis=-1) > 0
+    has = started.any(-1, keepdims=True)
+    onset = np.argmax(started, axis=-1)[..., None]
+    keep = (np.arange(x.shape[-1]) >= onset - 1) | ~has  # keep the sample just before the move
+    return np.where(keep, x, np.nan), np.where(keep, y, np.nan)
 
 
 def bias_from_turn_rate(turn_rate, speed):

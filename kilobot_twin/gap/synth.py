@@ -36,7 +36,7 @@ HIDDEN = {
     "speed_heterogeneity": ("motion", "speed_factor ~ N(1, 0.08), clipped to [0.75, 1.25]"),
     "bias_drift": ("motion", "bias_drift ~ N(0, 0.01) per trial (over 4 trials the bias moves ~1.7 population sds, "
                              "like Fig. 1f's robot going from straight to clearly curving)"),
-    "motion_noise": ("motion", "sigma_omega and sigma_v 3x the nominal robot's"),
+    "motion_noise": ("motion", "robots differ in noise intensity: sigma_omega x exp(N(0, 0.8)) per robot"),
     "floor_tilt": ("motion", "speed x (1 + 0.15 cos(heading - phi)), phi uniform: not in the gap library"),
     "sensor_gain": ("light_sweep", "sensor_gain ~ U(1.5, 3.0), sensor_offset ~ N(5, 6) counts"),
     "clock_drift": ("blink", "clock_rate ~ N(1, 0.015)"),
@@ -58,8 +58,14 @@ def parse_hidden(text: str, kind: str) -> list[str]:
 
 
 def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | None = None, trials: int | None = None,
-          seed: int = 0, duration_s: float | None = None, obs: Observation = Observation()) -> dict:
-    """Write a dataset to ``out`` and return its truth (also written to ``out/truth.json``)."""
+          seed: int = 0, duration_s: float | None = None, obs: Observation = Observation(),
+          nuisance: dict | None = None) -> dict:
+    """Write a dataset to ``out`` and return its truth (also written to ``out/truth.json``).
+
+    ``nuisance`` multiplies the nominal noise levels of the world (keys ``sigma_omega``,
+    ``sigma_v``, ``sensor_noise``, ``clock_trial_sd``; tracking noise goes through ``obs``):
+    the workflow fits them, so evaluations randomise them.
+    """
     if kind not in DEFAULTS:
         raise ConfigError("--kind", f"unknown kind {kind!r}", f"use one of {', '.join(DEFAULTS)}")
     effects = parse_hidden(hidden, kind) if isinstance(hidden, str) else list(hidden)
@@ -70,6 +76,8 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(7,)))
     ids = np.arange(n)
     traits, truth_extra = _hidden_traits(kind, effects, n, rng)
+    for k, f in (nuisance or {}).items():
+        traits[k] = traits[k] * f
     swarm = SwarmTraits(ids, traits)
     if kind == "motion":
         tracks, meta = _motion(swarm, K, T, d["dt_s"], seed, truth_extra.get("floor_tilt"), obs, rng)
@@ -80,7 +88,8 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     meta.update({"robots": [int(i) for i in ids], "trials": K, "duration_s": T})
     out = Path(out)
     measured.write(out, meta, tracks)
-    truth = {"kind": kind, "hidden": effects, "seed": seed, "observation": asdict(obs), **truth_extra,
+    truth = {"kind": kind, "hidden": effects, "seed": seed, "observation": asdict(obs), "nuisance": nuisance or {},
+             **truth_extra,
              "descriptions": {h: HIDDEN[h][1] for h in effects},
              "robots": {str(int(i)): {k: float(v[j]) for k, v in swarm.values.items()} for j, i in enumerate(ids)}}
     (out / "truth.json").write_text(json.dumps(truth, indent=1))
@@ -102,8 +111,7 @@ def _hidden_traits(kind, effects, n, rng):
         if "bias_drift" in effects:
             tr["bias_drift"] = rng.normal(0, 0.01, n)
         if "motion_noise" in effects:
-            for k, v in NOMINAL_MOTION_NOISE.items():
-                tr[k][:] = 3 * v
+            tr["sigma_omega"] = tr["sigma_omega"] * np.exp(rng.normal(0, 0.8, n))
         if "floor_tilt" in effects:
             extra["floor_tilt"] = {"amplitude": 0.15, "direction_rad": float(rng.uniform(-np.pi, np.pi))}
     elif kind == "light_sweep":

@@ -23,10 +23,13 @@
 
 from __future__ import annotations
 
+import functools
+import itertools
 import json
 import math
 import time
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +42,9 @@ from .model import COMPONENTS, Conditions, measured_summaries, simulate
 
 @dataclass
 class GapSettings:
+    """Workflow settings. ``library`` maps names to the :class:`effects.Effect` objects that are
+    candidates (default: the built-in library); add your own effect there."""
+
     seed: int = 0
     alpha: float = 0.01
     m_null: int = 120
@@ -46,6 +52,20 @@ class GapSettings:
     m_score: int = 30
     boot: int = 500
     max_steps: int = 4
+    library: dict = field(default_factory=lambda: dict(E.LIBRARY))
+
+
+_PURPOSE = {"base_ref": 1, "base_probe": 2, "effect_ref": 3, "effect_resim": 4, "heldout": 5, "null": 6, "bootstrap": 7}
+
+
+def child_seed(root: int, purpose: str, *keys: int) -> int:
+    """An independent seed for one purpose of the workflow: the child of ``root`` at
+    ``spawn_key = (purpose, *keys)`` (what ``SeedSequence(root).spawn`` hands out, addressed by
+    key rather than by the order of spawning, so that caching a fit does not shift any stream).
+    The null of the next round and the check that a name resolves a signal share a key on purpose:
+    both ask whether the same model flags the same signal."""
+    ss = np.random.SeedSequence(root, spawn_key=(_PURPOSE[purpose], *(int(k) for k in keys)))
+    return int(ss.generate_state(1, dtype=np.uint32)[0])
 
 
 # --- statistics ------------------------------------------------------------------------------
@@ -108,6 +128,7 @@ def statistics(kind: str, s: dict, trials: int) -> dict:
             out["turn_rate:trial_trend"] = (_f_trend(s["turn_rate"]), 1)
         out["speed:between_robots"] = (_f_between(s["speed"]), 1)
         out["diffusion:level"] = (np.nanmean(s["diffusion"], axis=(-2, -1)), 2)
+        out["diffusion:between_robots"] = (_f_between(s["diffusion"]), 1)
         out["speed:heading_dependence"] = (_heading_dependence(s["speed"], s["heading"]), 1)
     elif kind == "light_sweep":
         out["gain:between_robots"] = (_f_between(s["gain"]), 1)
@@ -132,14 +153,15 @@ def detect(kind, meas, null, trials, alpha):
     """Flag statistics whose calibrated p < alpha / n; localise each to robots and trials."""
     obs = statistics(kind, meas, trials)
     sim = statistics(kind, null, trials)
-    n = len(obs)
     found = []
     for name, (value, sided) in obs.items():
         z, p = _p_value(float(value), np.asarray(sim[name][0]), sided)
         comp = name.split(":")[0]
         robots, trials_ = _localise(meas.get(comp), null.get(comp), kind)
-        found.append({"signal": name, "statistic": float(value), "z": z, "p_value": p, "flagged": p < alpha / n,
+        found.append({"signal": name, "statistic": float(value), "z": z, "p_value": p,
                       "robots": robots, "trials": trials_})
+    for f, flag in zip(found, flagged_by_family([f["p_value"] for f in found], alpha)):
+        f["flagged"] = bool(flag)
     return found
 
 
@@ -164,30 +186,39 @@ class _Fitter:
 
     def __init__(self, cond: Conditions, meas: dict, start: E.TwinModel, gs: GapSettings, fit_base: bool):
         self.cond, self.meas, self.start, self.gs, self.fit_base = cond, meas, start, gs, fit_base
-        self.cache = {}
+        self.cache = {}  # (names, trials) -> fitted model
+        self.base_cache = {}  # trials -> fitted base model
 
     def meas_on(self, trials):
-        m = {k: v[trials] for k, v in self.meas.items() if k != "_trials"}
-        m["_trials"] = np.asarray(trials)
-        return m
+        return E.Summaries({k: v[trials] for k, v in self.meas.items()}, trials)
 
     def fit(self, names: tuple, trials) -> E.TwinModel:
         key = (names, tuple(int(t) for t in trials))
         if key in self.cache:
             return self.cache[key]
         meas = self.meas_on(np.asarray(trials))
-        seed = self.gs.seed + 1000 * len(names) + 17
+        depth = len(names)
         model = self.start
         if self.fit_base:
-            ref = simulate(self.cond, model.swarm, self.gs.m_ref, seed, trials)
-            model = E.fit_base(model, meas, ref)
+            if key[1] not in self.base_cache:
+                ref = simulate(self.cond, model, self.gs.m_ref, child_seed(self.gs.seed, "base_ref"), trials)
+
+                calls = itertools.count(1)
+
+                def resim_base(m):
+                    return simulate(self.cond, m, self.gs.m_ref, child_seed(self.gs.seed, "base_probe", next(calls)), trials)
+
+                all_trials = tuple(range(self.cond.trials))
+                noise = None if key[1] == all_trials else self.fit((), all_trials)
+                self.base_cache[key[1]] = E.fit_base(model, meas, ref, resim_base, noise)
+            model = self.base_cache[key[1]]
         for j, name in enumerate(names):
-            ref = simulate(self.cond, model.swarm, self.gs.m_ref, seed + j + 1, trials)
+            ref = simulate(self.cond, model, self.gs.m_ref, child_seed(self.gs.seed, "effect_ref", depth, j), trials)
 
             def resim(m, _j=j):
-                return simulate(self.cond, m.swarm, self.gs.m_ref, seed + 101 * (_j + 1), trials)
+                return simulate(self.cond, m, self.gs.m_ref, child_seed(self.gs.seed, "effect_resim", depth, _j), trials)
 
-            model = E.LIBRARY[name].fit(model, meas, ref, resim)
+            model = self.gs.library[name].fit(model, meas, ref, resim)
             model.named = list(names[: j + 1])
         self.cache[key] = model
         return model
@@ -201,21 +232,28 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
     K = fitter.cond.trials
     N = len(fitter.cond.robot_ids)
     comps = COMPONENTS[kind]
-    pred = {c: {"mean": np.full((K, N), np.nan), "sd": np.full(K, np.nan), "sd_level": np.full(K, np.nan)}
+    pred = {c: {"mean": np.full((K, N), np.nan), "sd": np.full((K, N), np.nan), "sd_level": np.full(K, np.nan)}
             for c in comps}
     for k in range(K):
         train = [t for t in range(K) if t != k]
         model = fitter.fit(names, train)
-        sims = simulate(fitter.cond, model.swarm, fitter.gs.m_score, fitter.gs.seed + 7919 + k, [k])
+        sim = fitter.gs.library[names[-1]].simulate if names else functools.partial(simulate)
+        sims = sim(fitter.cond, model, fitter.gs.m_score, child_seed(fitter.gs.seed, "heldout", k), [k])
         for c in comps:
             x = sims[c][:, 0, :]  # (M, N)
             pred[c]["mean"][k] = np.nanmean(x, axis=0)
-            # Pooled spread, floored at 1e-4 of the level so a deterministic prediction cannot
-            # turn a tiny mismatch into an infinite log-likelihood.
-            var = np.nanmean(np.nanvar(x, axis=0, ddof=1)) + (1e-4 * np.nanmean(np.abs(x))) ** 2
-            h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base)
-            pred[c]["sd"][k] = np.sqrt(var * (1 + h_track))
-            pred[c]["sd_level"][k] = np.sqrt(var * (1 + h_level))
+            # Each robot's spread (robots may differ in noise), shrunk halfway to the pooled one
+            # (M replicates estimate a variance to sqrt(2 / M)); floored at 1e-4 of the level so a
+            # deterministic prediction (a nuisance fitted as 0) cannot turn a tiny mismatch into an
+            # infinite log-likelihood.
+            with np.errstate(all="ignore"):
+                var_i = np.nanvar(x, axis=0, ddof=1)
+            pooled = np.nanmean(var_i)
+            var_i = 0.5 * np.where(np.isfinite(var_i), var_i, pooled) + 0.5 * pooled
+            floor = (1e-4 * np.nanmean(np.abs(x))) ** 2
+            h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base, fitter.gs.library)
+            pred[c]["sd"][k] = np.sqrt((var_i + floor) * (1 + h_track))
+            pred[c]["sd_level"][k] = np.sqrt((pooled + floor) * (1 + h_level))
     return pred
 
 
@@ -223,7 +261,7 @@ def _loglik_per_robot(meas, pred, comps):
     """Sum over held-out trials and components of log N(measured; mean, sd^2), per robot."""
     ll = 0.0
     for c in comps:
-        mu, sd = pred[c]["mean"], pred[c]["sd"][:, None]
+        mu, sd = pred[c]["mean"], pred[c]["sd"]
         z = (meas[c] - mu) / sd
         ll = ll + np.nansum(-0.5 * z**2 - np.log(sd) - 0.5 * np.log(2 * np.pi), axis=0)
     return ll  # (N,)
@@ -248,9 +286,9 @@ def _gap(meas, pred, yard, comps, robots=None) -> float:
     track, own, level = [], [], []
     for c in comps:
         m, mu = meas[c], pred[c]["mean"]
-        sd, sd_own = yard[c]["sd"][:, None], pred[c]["sd"][:, None]
+        sd, sd_own = yard[c]["sd"], pred[c]["sd"]
         if robots is not None:
-            m, mu = m[:, robots], mu[:, robots]
+            m, mu, sd, sd_own = m[:, robots], mu[:, robots], sd[:, robots], sd_own[:, robots]
         track.append(((m - mu) / sd) ** 2)
         own.append(((m - mu) / sd_own) ** 2)
         n = np.isfinite(m).sum(axis=1)
@@ -260,7 +298,7 @@ def _gap(meas, pred, yard, comps, robots=None) -> float:
 
 def _excess_z2(meas, pred, yard, comps):
     """Per-robot mean of the per-track z^2 - 1 (for plots of residuals per robot)."""
-    zs = [(meas[c] - pred[c]["mean"]) / yard[c]["sd"][:, None] for c in comps]
+    zs = [(meas[c] - pred[c]["mean"]) / yard[c]["sd"] for c in comps]
     return np.nanmean(np.stack(zs) ** 2, axis=(0, 1)) - 1.0  # (N,)
 
 
@@ -268,9 +306,56 @@ def _residuals(meas, base, final, comps):
     """Per-robot held-out residuals of each model, in units of the final model's spread (for plots)."""
     out = {}
     for name, pred in (("before", base), ("after", final)):
-        z = [np.nanmean(((meas[c] - pred[c]["mean"]) / final[c]["sd"][:, None]) ** 2, axis=0) for c in comps]
+        z = [np.nanmean(((meas[c] - pred[c]["mean"]) / final[c]["sd"]) ** 2, axis=0) for c in comps]
         out[name] = np.mean(z, axis=0)
     return out
+
+
+def flagged_by_family(p_values, alpha: float) -> np.ndarray:
+    """Which of a family of tests is flagged: p < alpha / (number of tests) (Bonferroni), so that
+    a model that is right flags anything with probability at most ``alpha``."""
+    p = np.asarray(p_values, dtype=float)
+    return p < alpha / max(len(p), 1)
+
+
+def decide(scores: dict, resolves, rng: np.random.Generator, boot: int, library: dict | None = None) -> dict:
+    """The naming rule.
+
+    ``scores[name]`` is each candidate's held-out log-likelihood gain over the current model,
+    per robot (N,). The best (largest sum) is named only if
+
+    1. the lower end of the 95 % bootstrap interval (over robots) of its gain over the current
+       model is above 0,
+    2. the same holds for its gain over the runner-up: the best other candidate, except
+       candidates that merely extend the best (they contain it, so they fit at least as well in
+       sample; when they score lower held-out the simpler best is preferred); and
+    3. adding it resolves at least one flagged signal: ``resolves(name)`` returns the signals it
+       removes (called only when 1 and 2 hold).
+
+    Returns best, order (best then the rivals, runner-up first), both intervals, ``clear`` (1
+    and 2), ``resolved`` and ``named``.
+    """
+    library = E.LIBRARY if library is None else library
+    order = sorted(scores, key=lambda k: -np.nansum(scores[k]))
+    best = order[0]
+    gain = np.asarray(scores[best], dtype=float)
+    n = len(gain)
+    ci_gain = np.percentile(_boot(rng, lambda i: np.nansum(gain[i]), n, boot), [2.5, 97.5])
+    rivals = [k for k in order[1:] if k not in library or best not in library[k].extends]
+    order = [best] + rivals
+    if rivals:
+        diff = gain - np.asarray(scores[rivals[0]], dtype=float)
+        ci_diff = np.percentile(_boot(rng, lambda i: np.nansum(diff[i]), n, boot), [2.5, 97.5])
+    else:
+        ci_diff = np.array([np.inf, np.inf])
+    clear = bool(ci_gain[0] > 0 and ci_diff[0] > 0)
+    resolved = list(resolves(best)) if clear else []
+    skipped = [k for k in sorted(scores, key=lambda k: -np.nansum(scores[k]))[1:] if k not in rivals]
+    why = ("the best-scoring other candidate" + (f"; {', '.join(skipped)} skipped: it extends {best} (contains it "
+                                                 "as a special case), so it cannot be a rival to a simpler model it contains"
+                                                 if skipped else "") if rivals else "no other candidate")
+    return {"best": best, "order": order, "ci_gain": ci_gain, "ci_diff": ci_diff, "clear": clear,
+            "resolved": resolved, "named": clear and bool(resolved), "runner_up_reason": why}
 
 
 def _boot(rng, values_fn, n, B):
@@ -285,22 +370,24 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
     t0 = time.perf_counter()
     cond, meas = measured_summaries(ds)
     kind = ds.kind
-    meas["_trials"] = np.arange(cond.trials)
+    meas = E.Summaries(meas, np.arange(cond.trials))
     fit_base = base is None
     start = base if base is not None else E.nominal_model(kind, cond.robot_ids)
     fitter = _Fitter(cond, meas, start, gs, fit_base)
     comps = COMPONENTS[kind]
     all_trials = list(range(cond.trials))
-    rng = np.random.default_rng(gs.seed)
+    rng = np.random.default_rng(np.random.SeedSequence(gs.seed, spawn_key=(_PURPOSE["bootstrap"],)))
     names: tuple = ()
     steps, disagreements = [], []
     unexplained, unexplained_signals = False, []
     pred_cache = {(): _heldout(fitter, (), kind)}
-    candidates = [e for e in E.LIBRARY.values() if e.kind == kind]
+    candidates = [e for e in gs.library.values() if e.kind == kind]
     for round_ in range(gs.max_steps + 1):
         model = fitter.fit(names, all_trials)
-        null = simulate(cond, model.swarm, gs.m_null, gs.seed + 31 * (round_ + 1))
+        null = simulate(cond, model, gs.m_null, child_seed(gs.seed, "null", round_))
         found = detect(kind, meas, null, cond.trials, gs.alpha)
+        if round_ == 0:
+            mde = minimum_detectable(kind, meas, null, cond.trials, gs.alpha)
         flagged = [f for f in found if f["flagged"]]
         for f in flagged:
             disagreements.append({"round": round_, "signal": f["signal"], "robots": [int(cond.robot_ids[i]) for i in f["robots"]],
@@ -321,36 +408,20 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         if not scores:
             unexplained, unexplained_signals = True, [f["signal"] for f in flagged]
             break
-        order = sorted(scores, key=lambda k: -np.nansum(scores[k]))
-        best = order[0]
-        n = len(cond.robot_ids)
-        gain = scores[best]
-        boot_gain = _boot(rng, lambda i: np.nansum(gain[i]), n, gs.boot)
-        ci_gain = np.percentile(boot_gain, [2.5, 97.5])
-        # The runner-up to beat: the best other candidate, except models that merely extend
-        # the winner (they contain it, so they fit at least as well in sample; when they score
-        # lower held-out, the simpler winner is named). An extension that wins must still beat
-        # the model it extends clearly.
-        rivals = [k for k in order[1:] if best not in E.LIBRARY[k].extends]
-        order = [best] + rivals
-        if len(order) > 1:
-            diff = gain - scores[order[1]]
-            boot_diff = _boot(rng, lambda i: np.nansum(diff[i]), n, gs.boot)
-            ci_diff = np.percentile(boot_diff, [2.5, 97.5])
-        else:
-            ci_diff = np.array([np.inf, np.inf])
-        clear = ci_gain[0] > 0 and ci_diff[0] > 0
-        log(f"[{kind}]   scores: " + ", ".join(f"{k} {np.nansum(scores[k]):+.1f}" for k in order)
-            + f"; best {best} CI vs current [{ci_gain[0]:.1f}, {ci_gain[1]:.1f}], vs runner-up [{ci_diff[0]:.1f}, {ci_diff[1]:.1f}]")
-        resolved = []
-        if clear:
+        def resolves(name):
             # A name must remove a disagreement, not only raise the likelihood elsewhere.
-            cand_model = fitter.fit(names + (best,), all_trials)
-            next_null = simulate(cond, cand_model.swarm, gs.m_null, gs.seed + 31 * (round_ + 2))
+            cand_model = fitter.fit(names + (name,), all_trials)
+            next_null = simulate(cond, cand_model, gs.m_null, child_seed(gs.seed, "null", round_ + 1))
             after = {f["signal"]: f for f in detect(kind, meas, next_null, cond.trials, gs.alpha)}
-            resolved = [f["signal"] for f in flagged if not after[f["signal"]]["flagged"]]
-            log(f"[{kind}]   {best} resolves {resolved or 'no flagged signal'}")
-        if not clear or not resolved:
+            return [f["signal"] for f in flagged if not after[f["signal"]]["flagged"]]
+
+        d = decide(scores, resolves, rng, gs.boot, gs.library)
+        best, order, ci_gain, ci_diff, resolved = d["best"], d["order"], d["ci_gain"], d["ci_diff"], d["resolved"]
+        gain = scores[best]
+        log(f"[{kind}]   scores: " + ", ".join(f"{k} {np.nansum(scores[k]):+.1f}" for k in order)
+            + f"; best {best} CI vs current [{ci_gain[0]:.1f}, {ci_gain[1]:.1f}], vs runner-up [{ci_diff[0]:.1f}, {ci_diff[1]:.1f}]"
+            + (f"; resolves {resolved or 'no flagged signal'}" if d["clear"] else ""))
+        if not d["named"]:
             unexplained, unexplained_signals = True, [f["signal"] for f in flagged]
             break
         names = names + (best,)
@@ -359,7 +430,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
             "score_vs_current": {"loglik_gain": float(np.nansum(gain)), "ci95": [float(x) for x in ci_gain]},
             "runner_up": {"name": order[1] if len(order) > 1 else None,
                           "loglik_gain_over_it": float(np.nansum(gain - scores[order[1]])) if len(order) > 1 else None,
-                          "ci95": [float(x) for x in ci_diff]},
+                          "ci95": [float(x) for x in ci_diff], "why_this_one": d["runner_up_reason"]},
             "scores": {k: float(np.nansum(v)) for k, v in scores.items()},
             "signals": [f["signal"] for f in flagged],
             "resolved": resolved,
@@ -386,10 +457,66 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         "gap_after": {"metric": metric, "value": after, "ci95": [float(x) for x in np.percentile(bb[:, 1], [2.5, 97.5])]},
         "gap_shrink": {"value": float(1 - after / before) if before > 0 else 0.0,
                        "ci95": [float(x) for x in np.nanpercentile(shrink, [2.5, 97.5])]},
+        "nuisances": _nuisances(fitter.fit((), all_trials), cond) if fit_base else {},
+        "minimum_detectable": mde,
         "steps": steps, "disagreements": disagreements, "seconds": time.perf_counter() - t0,
         "_residuals": _residuals(meas, pred_cache[()], pred_cache[names], comps),
     }
     return {"section": section, "model": final}
+
+
+#: effect -> (summary whose between-robot F statistic detects it, how its size is expressed)
+_MDE_OF = {"motion": {"heading_bias": ("turn_rate", "sd of the per-robot turn rate, rad/s"),
+                      "speed_heterogeneity": ("speed", "relative sd of the per-robot speed factor"),
+                      "motion_noise": ("diffusion", "sd of the per-robot heading diffusion, rad^2/s")},
+           "light_sweep": {"sensor_gain": ("gain", "relative sd of the per-robot sensor gain")},
+           "blink": {"clock_drift": ("toggle_rate", "relative sd of the per-robot clock rate")}}
+
+
+def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: float, power: float = 0.8) -> dict:
+    """The smallest between-robot spread of each effect that the detection step flags with
+    ``power`` on this dataset (its robots, trials, noise), from the fitted base's simulations.
+
+    Between robots that differ by sd tau, a robot's mean over its K trials varies by an extra
+    tau^2, so the F ratio of between- to within-robot mean squares grows by the factor
+    1 + K tau^2 / s_w^2 (s_w^2: the within-robot variance of one trial's summary). Its logarithm
+    is what :func:`detect` compares with the simulated null (mean m0, sd s0), flagging above
+    m0 + z(alpha / n) s0; with the same spread under the effect, ``power`` is reached when
+    log(1 + K tau^2 / s_w^2) = (z(alpha / n) + z(1 - power)) s0. This covers detection only
+    (naming also needs the held-out score), so it is a lower bound on what gets named.
+    """
+    from scipy.stats import norm
+
+    stats = statistics(kind, null, trials)
+    z = norm.isf(alpha / len(stats)) + norm.isf(1 - power)
+    out = {}
+    for effect, (comp, unit) in _MDE_OF.get(kind, {}).items():
+        f = np.asarray(stats[f"{comp}:between_robots"][0], dtype=float)
+        s0 = np.nanstd(f[np.isfinite(f)], ddof=1)
+        x = null[comp]  # (M, K, N)
+        with np.errstate(all="ignore"):
+            s_w2 = np.nanmean([E._within_var(r) for r in x])
+            k_eff = float(np.nanmean(np.isfinite(meas[comp]).sum(0)))
+            tau = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
+            level = float(np.nanmean(x))
+        size = tau if comp in ("turn_rate", "diffusion") else tau / abs(level)
+        out[effect] = {"size": size, "unit": unit}
+        if effect == "heading_bias":  # also in the twin's heading-bias units, b = -omega L / v
+            v = float(np.nanmean(null["speed"]))
+            out[effect]["heading_bias_sd"] = tau * 0.025 / v
+    return out
+
+
+def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
+    """The nuisance levels the base model fitted to the data (population values)."""
+    sw = base.swarm
+    if base.kind == "motion":
+        return {"sigma_omega_rad_sqrt_s": float(sw.sigma_omega.mean()), "sigma_v_m_sqrt_s": float(sw.sigma_v.mean()),
+                "speed_trial_sd": float(base.speed_trial_sd), "bias_trial_sd": float(sw.bias_trial_sd.mean()),
+                "tracking_noise_m": float(cond.tracking_noise_m)}
+    if base.kind == "light_sweep":
+        return {"sensor_noise_counts": float(sw.sensor_noise.mean())}
+    return {"clock_trial_sd": float(sw.clock_trial_sd.mean())}
 
 
 MODEL_TRAITS = {
@@ -423,7 +550,9 @@ def run_gap(data: list[str], out: str | Path, model_path: str | None = None, gs:
     for d in data:
         ds = _load_data(d)
         base = _load_base(model_path, ds.kind, ds.robots) if model_path else None
-        res = analyse(ds, gs, base, log)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # robots missing from whole trials
+            res = analyse(ds, gs, base, log)
         sections.append(res["section"])
         models.append(res["model"])
     robots: dict = {}

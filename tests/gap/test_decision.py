@@ -1,0 +1,111 @@
+"""The naming rule and the family-wise flagging, fed constructed inputs (no simulation).
+
+Each test pins one clause of the rule; loosening any clause (naming on the point estimate,
+forgetting the runner-up, forgetting the resolution check, flagging at alpha instead of
+alpha / n) fails one of them.
+"""
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+from kilobot_twin.gap.workflow import decide, detect, flagged_by_family
+
+N = 12
+
+
+def _never(_name):
+    raise AssertionError("resolves() must not be called when the scores are not clear")
+
+
+def _rng():
+    return np.random.default_rng(0)
+
+
+def test_clear_winner_that_resolves_is_named():
+    scores = {"a": np.full(N, 5.0) + np.linspace(-1, 1, N), "b": np.zeros(N), "c": np.full(N, -3.0)}
+    d = decide(scores, lambda name: ["x:between_robots"], _rng(), 500)
+    assert d["named"] and d["best"] == "a" and d["order"][1] == "b"
+    assert d["ci_gain"][0] > 0 and d["ci_diff"][0] > 0
+
+
+def test_positive_sum_but_lower_bound_below_zero_is_not_named():
+    """One robot carries the whole gain: the sum is +39 but resampling robots often drops it,
+    so the 95 % interval's lower end is below 0 (P(robot left out of a resample) = (11/12)^12 = 0.35)."""
+    gain = np.full(N, -1.0)
+    gain[3] = 50.0
+    scores = {"a": gain, "b": np.full(N, -20.0)}
+    d = decide(scores, _never, _rng(), 1000)
+    assert np.nansum(gain) > 0 and d["ci_gain"][0] < 0
+    assert not d["named"] and not d["clear"]
+
+
+def test_must_beat_the_runner_up_clearly():
+    """Both candidates gain clearly over the current model, but they are indistinguishable."""
+    rng = np.random.default_rng(1)
+    a = 5.0 + rng.normal(0, 1, N)
+    b = a + rng.normal(0, 1, N)  # differs from a by noise only
+    scores = {"a": a, "b": b}
+    d = decide(scores, _never, _rng(), 1000)
+    assert d["ci_gain"][0] > 0 and d["ci_diff"][0] < 0
+    assert not d["named"]
+
+
+def test_an_extension_of_the_best_is_not_its_runner_up_but_the_best_extension_must_win_clearly():
+    # bias_drift extends heading_bias: when heading_bias is best, bias_drift is skipped as runner-up.
+    hb = np.full(N, 4.0) + np.linspace(-0.5, 0.5, N)
+    scores = {"heading_bias": hb, "bias_drift": hb - 0.01, "speed_heterogeneity": np.zeros(N)}
+    d = decide(scores, lambda n: ["turn_rate:between_robots"], _rng(), 500)
+    assert d["order"][1] == "speed_heterogeneity" and d["named"]
+    # When the extension is best, the model it extends is a rival it must beat clearly.
+    wiggle = np.tile([0.3, -0.28], N // 2)  # sums to +0.12: ahead, but not clearly
+    scores = {"bias_drift": hb + wiggle, "heading_bias": hb, "speed_heterogeneity": np.zeros(N)}
+    d = decide(scores, _never, _rng(), 500)
+    assert d["order"][1] == "heading_bias" and not d["named"]
+
+
+def test_a_clear_winner_that_resolves_nothing_is_not_named():
+    scores = {"a": np.full(N, 5.0) + np.linspace(-1, 1, N), "b": np.zeros(N)}
+    d = decide(scores, lambda name: [], _rng(), 500)
+    assert d["clear"] and not d["named"]
+
+
+def test_family_wise_threshold():
+    # Three tests at alpha 0.01: each is held to 0.01 / 3.
+    assert list(flagged_by_family([0.004, 0.5, 0.9], 0.01)) == [False, False, False]
+    assert list(flagged_by_family([0.003, 0.5, 0.9], 0.01)) == [True, False, False]
+    assert list(flagged_by_family([0.004], 0.01)) == [True]
+
+
+def test_detect_holds_each_statistic_to_alpha_over_the_family():
+    """light_sweep has two statistics. A gain statistic whose calibrated p is 0.008 (between
+    alpha / 2 = 0.005 and alpha = 0.01) is not flagged; at p = 0.002 it is."""
+    rng = np.random.default_rng(3)
+    K, M = 4, 400
+    null = {"gain": 2000 + 20 * rng.standard_normal((M, K, N)), "offset": 5 + rng.standard_normal((M, K, N))}
+
+    def log_f(x):
+        m_i = x.mean(0)
+        msb = K * ((m_i - x.mean()) ** 2).sum() / (N - 1)
+        msw = ((x - m_i) ** 2).sum() / (K * N - N)
+        return np.log(msb / msw)
+
+    null_f = np.array([log_f(g) for g in null["gain"]])
+    mu, sd = null_f.mean(), null_f.std(ddof=1)
+    noise = 20 * rng.standard_normal((K, N))
+    pattern = rng.standard_normal(N)
+    pattern -= pattern.mean()
+
+    def meas_with_p(p):
+        target = mu + norm.isf(p) * sd  # the statistic whose normal-tail p is p
+        lo, hi = 0.0, 100.0
+        for _ in range(100):  # bisection on the between-robot amplitude
+            c = 0.5 * (lo + hi)
+            lo, hi = (c, hi) if log_f(noise + c * pattern) < target else (lo, c)
+        return {"gain": 2000 + noise + c * pattern, "offset": 5 + rng.standard_normal((K, N))}
+
+    for p, flagged in ((0.008, False), (0.002, True)):
+        found = {f["signal"]: f for f in detect("light_sweep", meas_with_p(p), null, K, 0.01)}
+        g = found["gain:between_robots"]
+        assert g["p_value"] == pytest.approx(p, rel=1e-3)
+        assert g["flagged"] is flagged
