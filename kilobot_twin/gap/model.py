@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import measured
+from ..batch import engine
 from ..core import sim
 from ..core.traits import SwarmTraits
 from . import summaries, synth
@@ -111,7 +112,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
     if cond.kind == "motion":
         sc = synth.motion_scenario(cond.duration_s, cond.dt_s, floor_tilt)
         x0, y0, th0 = (np.tile(a[trials], (M, 1)) for a in cond.start)
-        res = sim.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, poses=(x0, y0, th0))
+        res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, poses=(x0, y0, th0))
         T = mask.shape[-1]
         x, y = res.traj["x"][..., :T], res.traj["y"][..., :T]
         if speed_trial_sd > 0:
@@ -123,7 +124,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
         s = summaries.motion(np.where(mask, x, np.nan), np.where(mask, y, np.nan), cond.dt_s)
     elif cond.kind == "light_sweep":
         sc = synth.light_scenario(cond.duration_s, cond.dt_s)
-        res = sim.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1)
+        res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1)
         T = mask.shape[-1]
         stim = np.broadcast_to(sc.light.v_value(res.t_s[:T]), mask.shape)
         s = summaries.light_sweep(np.where(mask, stim, np.nan), np.where(mask, res.traj["reading"][..., :T], np.nan))

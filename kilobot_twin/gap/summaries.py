@@ -7,6 +7,8 @@ runs go through the same functions.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..core.constants import WHEEL_SEPARATION_M
@@ -14,10 +16,6 @@ from ..core.constants import WHEEL_SEPARATION_M
 #: Lag over which headings and speeds are measured: long enough that tracking noise (mm)
 #: is small against the displacement (1.13 cm/s x 2 s), short enough to follow curvature.
 MOTION_LAG_S = 2.0
-
-
-def _wrap(a):
-    return (a + np.pi) % (2 * np.pi) - np.pi
 
 
 def _ffill(a):
@@ -28,13 +26,6 @@ def _ffill(a):
     out = np.take_along_axis(a, idx, axis=-1)
     first = np.maximum.accumulate(ok, axis=-1)
     return np.where(first, out, np.nan)
-
-
-def _lagged_msd(r, ok, lag):
-    """Mean squared change of r over ``lag`` samples where both ends are observed; (...,)."""
-    d = r[..., lag:] - r[..., :-lag]
-    m = ok[..., lag:] & ok[..., :-lag]
-    return np.where(m, d * d, 0.0).sum(-1) / np.maximum(m.sum(-1), 1)
 
 
 def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0), speed_lags_s=(1.0, 5.0)) -> dict:
@@ -48,47 +39,120 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0
     between the two ``msd_lags_s``: tracking noise adds the same constant at both lags and
     cancels, the robot's heading noise (sigma_omega^2 per second) does not.
     ``heading`` is the circular mean heading. ``speed_diffusion`` (m^2/s) is the growth rate of the
-    variance of the distance covered over ``speed_lags_s``: the speed noise's sigma_v^2. (For single tracks with irregular sample times,
+    variance of the distance covered over ``speed_lags_s``: the speed noise's sigma_v^2. Tracks
+    with fewer than 10 observed headings give NaN. (For single tracks with irregular sample times,
     :func:`kilobot_twin.analysis.turn_rate_from_track` does the turn rate and speed.)
+
+    One pass per track (:func:`_motion_tracks`, compiled with Numba where available): the
+    workflow summarises thousands of simulated tracks per fit.
     """
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    lead = x.shape[:-1]
     L = max(1, int(round(lag_s / dt_s)))
-    dx = x[..., L:] - x[..., :-L]
-    dy = y[..., L:] - y[..., :-L]
-    dist = np.hypot(dx, dy)
-    h = np.arctan2(dy, dx)
-    ok = np.isfinite(h)
-    hf = _ffill(h)
-    step = np.nan_to_num(_wrap(np.diff(hf, axis=-1)), nan=0.0)
-    first = np.where(ok.any(-1), np.take_along_axis(h, np.argmax(ok, axis=-1)[..., None], -1)[..., 0], 0.0)
-    unwrapped = np.concatenate([np.zeros(h.shape[:-1] + (1,)), np.cumsum(step, axis=-1)], axis=-1) + first[..., None]
-    t = np.arange(h.shape[-1]) * dt_s
-    w = ok.astype(float)
-    n = w.sum(-1)
-    tm = (w * t).sum(-1) / np.maximum(n, 1)
-    hm = (w * np.nan_to_num(unwrapped)).sum(-1) / np.maximum(n, 1)
-    dt_ = np.where(ok, t - tm[..., None], 0.0)
-    turn = (dt_ * np.where(ok, unwrapped - hm[..., None], 0.0)).sum(-1) / np.maximum((dt_**2).sum(-1), 1e-12)
-    resid = np.where(ok, unwrapped - hm[..., None] - turn[..., None] * (t - tm[..., None]), 0.0)
     l1, l2 = (max(1, int(round(s / dt_s))) for s in msd_lags_s)
-    diffusion = (_lagged_msd(resid, ok, l2) - _lagged_msd(resid, ok, l1)) / ((l2 - l1) * dt_s)
-    okd = np.isfinite(dist)
-    speed = np.where(okd, dist, 0.0).sum(axis=-1) / np.maximum(okd.sum(axis=-1), 1) / (L * dt_s)
-    # Speed noise within a track: the variance of the distance covered over a lag grows by
-    # sigma_v^2 per second of lag; tracking noise adds the same at both lags and cancels.
     s1, s2 = (max(1, int(round(s / dt_s))) for s in speed_lags_s)
-    var_d = []
-    for lag in (s1, s2):
-        dd = np.hypot(x[..., lag:] - x[..., :-lag], y[..., lag:] - y[..., :-lag])
-        ok_d = np.isfinite(dd)
-        nd = np.maximum(ok_d.sum(-1), 2)
-        md = np.where(ok_d, dd, 0.0).sum(-1) / nd
-        var_d.append(np.where(ok_d, (dd - md[..., None]) ** 2, 0.0).sum(-1) / (nd - 1))
-    speed_diffusion = (var_d[1] - var_d[0]) / ((s2 - s1) * dt_s)
-    heading = np.arctan2(np.where(ok, np.sin(h), 0).sum(-1), np.where(ok, np.cos(h), 0).sum(-1))
-    bad = n < 10
-    out = {"turn_rate": turn, "speed": speed, "diffusion": diffusion, "heading": heading,
-           "speed_diffusion": speed_diffusion}
-    return {k: np.where(bad, np.nan, v) for k, v in out.items()}
+    out = np.empty((int(np.prod(lead)), 5))
+    _compiled_tracks()(np.ascontiguousarray(x.reshape(-1, x.shape[-1])), np.ascontiguousarray(y.reshape(-1, y.shape[-1])),
+                       L, l1, l2, s1, s2, float(dt_s), out)
+    out = out.reshape(lead + (5,))
+    return {k: out[..., j] for j, k in enumerate(_MOTION_KEYS)}
+
+
+_MOTION_KEYS = ("turn_rate", "speed", "diffusion", "heading", "speed_diffusion")
+
+
+def _motion_tracks(x, y, L, l1, l2, s1, s2, dt, out):  # pragma: no cover - compiled
+    """:func:`motion` for tracks ``x``, ``y`` (R, T) into ``out`` (R, 5), in the order of ``_MOTION_KEYS``."""
+    R, T = x.shape
+    Th = max(T - L, 0)
+    u = np.empty(Th)
+    ok = np.empty(Th, np.bool_)
+    res = np.empty(Th)
+    for r in range(R):
+        n = 0
+        dist_sum, s_sum, c_sum, t_sum, u_sum = 0.0, 0.0, 0.0, 0.0, 0.0
+        last, acc, first = 0.0, 0.0, 0.0
+        seen = False
+        for j in range(Th):
+            dx = x[r, j + L] - x[r, j]
+            dy = y[r, j + L] - y[r, j]
+            ok[j] = math.isfinite(dx) and math.isfinite(dy)
+            if ok[j]:
+                h = math.atan2(dy, dx)
+                if seen:  # unwrap: the wrapped change since the last observed heading
+                    acc += (h - last + math.pi) % (2 * math.pi) - math.pi
+                else:
+                    first, seen = h, True
+                last = h
+                n += 1
+                dist_sum += math.hypot(dx, dy)
+                s_sum += math.sin(h)
+                c_sum += math.cos(h)
+            u[j] = first + acc
+            if ok[j]:
+                t_sum += j * dt
+                u_sum += u[j]
+        if n < 10:
+            for q in range(5):
+                out[r, q] = np.nan
+            continue
+        tm, hm = t_sum / n, u_sum / n
+        sxy, sxx = 0.0, 0.0
+        for j in range(Th):
+            if ok[j]:
+                dtj = j * dt - tm
+                sxy += dtj * (u[j] - hm)
+                sxx += dtj * dtj
+        turn = sxy / max(sxx, 1e-12)
+        for j in range(Th):
+            res[j] = u[j] - hm - turn * (j * dt - tm) if ok[j] else 0.0
+        msd = np.zeros(2)
+        for q, lag in enumerate((l1, l2)):
+            m, ss = 0, 0.0
+            for j in range(Th - lag):
+                if ok[j] and ok[j + lag]:
+                    d = res[j + lag] - res[j]
+                    ss += d * d
+                    m += 1
+            msd[q] = ss / max(m, 1)
+        var = np.zeros(2)
+        for q, lag in enumerate((s1, s2)):
+            m, ss = 0, 0.0
+            for j in range(T - lag):
+                d = math.hypot(x[r, j + lag] - x[r, j], y[r, j + lag] - y[r, j])
+                if math.isfinite(d):
+                    ss += d
+                    m += 1
+            nd = max(m, 2)
+            md, sq = ss / nd, 0.0
+            for j in range(T - lag):
+                d = math.hypot(x[r, j + lag] - x[r, j], y[r, j + lag] - y[r, j])
+                if math.isfinite(d):
+                    sq += (d - md) ** 2
+            var[q] = sq / (nd - 1)
+        out[r, 0] = turn
+        out[r, 1] = dist_sum / n / (L * dt)
+        out[r, 2] = (msd[1] - msd[0]) / ((l2 - l1) * dt)
+        out[r, 3] = math.atan2(s_sum, c_sum)
+        out[r, 4] = (var[1] - var[0]) / ((s2 - s1) * dt)
+
+
+_TRACKS = []
+
+
+def _compiled_tracks():
+    """:func:`_motion_tracks`, compiled with Numba once per process (plain Python without it)."""
+    if not _TRACKS:
+        from ..batch import kernel
+
+        if kernel.AVAILABLE:
+            from numba import njit
+
+            _TRACKS.append(njit(nogil=True, cache=True)(_motion_tracks))
+        else:
+            _TRACKS.append(_motion_tracks)
+    return _TRACKS[0]
 
 
 def _second_difference(a):

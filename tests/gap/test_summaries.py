@@ -42,3 +42,71 @@ def test_blink_toggle_rate_and_closed_form_leds():
     st = sim.init_state(sc, sw, 3, runs=[0, 5], trials=[0, 2])
     expected = 31.0 * st.clock / 30  # toggles per second
     assert np.all(np.abs(rate / expected - 1) < 0.01)
+
+
+def _motion_vectorised(x, y, dt_s, lag_s=2.0, msd_lags_s=(5.0, 20.0), speed_lags_s=(1.0, 5.0)):
+    """A second implementation of summaries.motion (the project's former vectorised NumPy one,
+    whole-array operations instead of one pass per track): the compiled loop must agree with it."""
+    def wrap(a):
+        return (a + np.pi) % (2 * np.pi) - np.pi
+
+    def ffill(a):
+        ok = np.isfinite(a)
+        idx = np.where(ok, np.arange(a.shape[-1]), 0)
+        np.maximum.accumulate(idx, axis=-1, out=idx)
+        return np.where(np.maximum.accumulate(ok, axis=-1), np.take_along_axis(a, idx, axis=-1), np.nan)
+
+    def msd(r, ok, lag):
+        d = r[..., lag:] - r[..., :-lag]
+        m = ok[..., lag:] & ok[..., :-lag]
+        return np.where(m, d * d, 0.0).sum(-1) / np.maximum(m.sum(-1), 1)
+
+    L = max(1, int(round(lag_s / dt_s)))
+    dx, dy = x[..., L:] - x[..., :-L], y[..., L:] - y[..., :-L]
+    dist, h = np.hypot(dx, dy), np.arctan2(dy, dx)
+    ok = np.isfinite(h)
+    step = np.nan_to_num(wrap(np.diff(ffill(h), axis=-1)), nan=0.0)
+    first = np.where(ok.any(-1), np.take_along_axis(h, np.argmax(ok, axis=-1)[..., None], -1)[..., 0], 0.0)
+    u = np.concatenate([np.zeros(h.shape[:-1] + (1,)), np.cumsum(step, axis=-1)], axis=-1) + first[..., None]
+    t = np.arange(h.shape[-1]) * dt_s
+    n = ok.sum(-1)
+    tm = np.where(ok, t, 0).sum(-1) / np.maximum(n, 1)
+    hm = np.where(ok, u, 0).sum(-1) / np.maximum(n, 1)
+    dt_ = np.where(ok, t - tm[..., None], 0.0)
+    turn = (dt_ * np.where(ok, u - hm[..., None], 0.0)).sum(-1) / np.maximum((dt_**2).sum(-1), 1e-12)
+    resid = np.where(ok, u - hm[..., None] - turn[..., None] * (t - tm[..., None]), 0.0)
+    l1, l2 = (max(1, int(round(s / dt_s))) for s in msd_lags_s)
+    diffusion = (msd(resid, ok, l2) - msd(resid, ok, l1)) / ((l2 - l1) * dt_s)
+    speed = np.where(ok, dist, 0.0).sum(-1) / np.maximum(n, 1) / (L * dt_s)
+    s1, s2 = (max(1, int(round(s / dt_s))) for s in speed_lags_s)
+    var_d = []
+    for lag in (s1, s2):
+        dd = np.hypot(x[..., lag:] - x[..., :-lag], y[..., lag:] - y[..., :-lag])
+        okd = np.isfinite(dd)
+        nd = np.maximum(okd.sum(-1), 2)
+        md = np.where(okd, dd, 0.0).sum(-1) / nd
+        var_d.append(np.where(okd, (dd - md[..., None]) ** 2, 0.0).sum(-1) / (nd - 1))
+    heading = np.arctan2(np.where(ok, np.sin(h), 0).sum(-1), np.where(ok, np.cos(h), 0).sum(-1))
+    out = {"turn_rate": turn, "speed": speed, "diffusion": diffusion, "heading": heading,
+           "speed_diffusion": (var_d[1] - var_d[0]) / ((s2 - s1) * dt_s)}
+    return {k: np.where(n < 10, np.nan, v) for k, v in out.items()}
+
+
+def test_compiled_motion_summaries_equal_a_vectorised_second_implementation():
+    """Random walks crossing the +-pi cut many times, with dropped frames, long losses, a track
+    with too few samples, leading gaps and a track that never appears: both agree to 1e-9."""
+    rng = np.random.default_rng(7)
+    K, N, T, dt = 3, 7, 700, 1 / 15
+    th = np.cumsum(rng.normal(0, 0.3, (K, N, T)), axis=-1) + rng.uniform(-3, 3, (K, N, 1))
+    x = np.cumsum(0.01 * np.cos(th), -1) + 0.002 * rng.standard_normal((K, N, T))
+    y = np.cumsum(0.01 * np.sin(th), -1) + 0.002 * rng.standard_normal((K, N, T))
+    drop = rng.random((K, N, T)) < 0.1
+    drop[0, 1, 200:400] = True
+    drop[1, 2, :150] = True
+    drop[2, 3, 38:] = True  # fewer than 10 headings (2 s lag = 30 frames)
+    drop[2, 4] = True
+    x, y = np.where(drop, np.nan, x), np.where(drop, np.nan, y)
+    got, want = summaries.motion(x, y, dt), _motion_vectorised(x, y, dt)
+    assert np.isnan(got["turn_rate"][2, 3]) and np.isnan(got["speed"][2, 4])
+    for k in want:
+        np.testing.assert_allclose(got[k], want[k], rtol=1e-9, atol=1e-12, equal_nan=True, err_msg=k)
