@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from kilobot_twin.recording.bag import summary_counts  # noqa: E402
-from kilobot_twin.ros.robot_bag import TwinBagWriter  # noqa: E402
+from kilobot_twin.recording.twin_bag import TwinBagWriter  # noqa: E402
 
 
 def synthetic_bag(path: Path, robots: int, hz: float, seconds: float, seed: int = 0, burst: bool = False) -> int:

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import measured
+from ..recording import measured
 from ..core import sim
 from ..core.traits import SwarmTraits
 from . import summaries, synth

@@ -37,7 +37,7 @@ from std_msgs.msg import ColorRGBA, Float64, String, UInt32
 from ..core.metrics import METRICS
 from ..core.metrics import swarm_metrics as core_metrics
 from ..core.scenario import Scenario
-from ..recording import topics
+from ..recording import cdr, topics
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
 from ..core.scenarios import parse_world_document, scenario_from_document
@@ -105,10 +105,10 @@ class AnalysisNode(Node):
                                                qos.DATA, raw=True)
             elif kind == "led":
                 sub = self.create_subscription(ColorRGBA, topic, lambda data, r=rid: self.led.__setitem__(
-                    r, convert.led_from_cdr(data)), qos.DATA, raw=True)
+                    r, cdr.led(data)), qos.DATA, raw=True)
             else:
                 sub = self.create_subscription(TimeReference, topic, lambda data, r=rid: self.ticks.__setitem__(
-                    r, convert.ticks_from_clock_cdr(data, self.scenario.tick_hz)), qos.DATA, raw=True)
+                    r, cdr.time_reference(data)[1] / cdr.NS_PER_S * self.scenario.tick_hz), qos.DATA, raw=True)
             self._robot_subs.setdefault(rid, []).append(sub)
 
     def _on_members(self, base: str, msg: String) -> None:
@@ -121,7 +121,7 @@ class AnalysisNode(Node):
         self.create_subscription(PointCloud2, topics.swarm_cloud_topic(base), self._on_cloud, qos.DATA, raw=True)
 
     def _on_cloud(self, data: bytes) -> None:
-        stamp, pts = convert.robot_cloud_from_cdr(data)
+        stamp, pts = cdr.robot_cloud(data)
         ids = pts["id"].tolist()
         x, y = pts["x"].tolist(), pts["y"].tolist()
         self.x.update(zip(ids, x))
@@ -134,8 +134,7 @@ class AnalysisNode(Node):
         self._maybe_publish()
 
     def _on_pose(self, rid: int, data: bytes) -> None:
-        x, y = convert.pose_xy_from_cdr(data)
-        stamp = convert.stamp_ns_from_cdr(data)
+        stamp, x, y, _qz, _qw = cdr.pose_stamped(data)
         self.x[rid], self.y[rid] = x, y
         self._visited.append((stamp, [x], [y]))  # coverage cells are computed in bulk at publication
         self._sample(rid, stamp)

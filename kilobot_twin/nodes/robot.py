@@ -197,7 +197,7 @@ class RobotNode(Node):
     # --- outputs --------------------------------------------------------------------------------
 
     def publish_sample(self, stamp_ns: int) -> None:
-        """Publish this robot's state (serialized CDR, see :func:`convert.robot_cdr`)."""
+        """Publish this robot's state (serialized CDR, see :func:`kilobot_twin.recording.cdr.robot_cdr`)."""
         pose, light, led, clock = self.model.serialized(stamp_ns, slice(self.col, self.col + 1))
         with_clock = bool(convert.clock_steps(self.model.step_index, self.scenario.dt_s, self.clock_period_s))
         self.publish_serialized(pose[0], light[0], led[0], clock[0] if with_clock else None)

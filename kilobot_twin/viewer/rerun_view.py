@@ -34,10 +34,41 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from .swarm_data import SwarmRecording, bias_colours, led_colours
+from ..core.constants import LED_BLUE, LED_OFF, LED_RED
+from ..recording.swarm_data import SwarmRecording
 
 APP_ID = "kilobot_twin"
 TIMELINE = "time"
+
+
+# --- colours -------------------------------------------------------------------------------------
+
+#: The paper's heading-bias map (as kilobot_twin.plots.bias_cmap): red (left, b < 0) -> purple -> blue (right).
+_BIAS_STOPS = np.array([[1.0, 0.0, 0.0], [0.5, 0.0, 0.5], [0.0, 0.35, 1.0]])
+
+
+def bias_colours(bias: np.ndarray, limit: float | None = None) -> np.ndarray:
+    """(N, 3) uint8 RGB of heading biases on the paper's map, symmetric around 0 (grey if unknown)."""
+    bias = np.asarray(bias, dtype=np.float64)
+    ok = np.isfinite(bias)
+    lim = limit if limit else (float(np.max(np.abs(bias[ok]))) if ok.any() else 1.0) or 1.0
+    u = np.clip((np.where(ok, bias, 0.0) / lim + 1.0) / 2.0, 0.0, 1.0) * 2.0  # 0..2 over two segments
+    i = np.minimum(u.astype(int), 1)
+    f = (u - i)[:, None]
+    rgb = _BIAS_STOPS[i] * (1 - f) + _BIAS_STOPS[i + 1] * f
+    rgb[~ok] = 0.5
+    return np.round(rgb * 255).astype(np.uint8)
+
+
+def led_colours(led: np.ndarray) -> np.ndarray:
+    """(..., 4) uint8 RGBA of LED states: red, blue, dark grey when off, light grey when unknown."""
+    led = np.asarray(led)
+    out = np.empty(led.shape + (4,), dtype=np.uint8)
+    out[...] = (200, 200, 200, 255)
+    out[led == LED_RED] = (230, 20, 20, 255)
+    out[led == LED_BLUE] = (20, 60, 240, 255)
+    out[led == LED_OFF] = (60, 60, 60, 255)
+    return out
 
 
 def blueprint(rec: SwarmRecording | None = None) -> rrb.Blueprint:

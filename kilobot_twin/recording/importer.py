@@ -20,7 +20,7 @@ So that ``view``, ``replay`` and the gap workflow take measured and simulated ru
 - ``/clock`` at every sample time present in the data.
 
 Tracking gaps (missing rows) stay gaps: nothing is written for them. Bad input is reported by
-:func:`kilobot_twin.measured.load` (file, line, column).
+:func:`kilobot_twin.recording.measured.load` (file, line, column).
 """
 
 from __future__ import annotations
@@ -29,9 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .errors import ConfigError
+from .. import __version__
+from ..errors import ConfigError
+from .bag import summary_counts
+from .cdr import float64_cdr
 from .measured import Dataset, load
+from .twin_bag import TwinBagWriter
 
 NS = 1_000_000_000
 
@@ -65,9 +68,7 @@ def trial_period_s(ds: Dataset) -> float:
 
 def import_dataset(dataset: str | Path, out: str | Path) -> dict:
     """Write the bag ``out`` from the dataset folder; returns a summary (messages per topic, trials)."""
-    from .analysis import heading_bias_from_track
-    from .recording.bag import summary_counts
-    from .ros.robot_bag import TwinBagWriter
+    from ..analysis import heading_bias_from_track
 
     out = Path(out)
     if (out / "metadata.yaml").exists() or any(out.glob("*.mcap")):
@@ -102,9 +103,6 @@ def import_dataset(dataset: str | Path, out: str | Path) -> dict:
 
     w = TwinBagWriter(out)
     try:
-        from rclpy.serialization import serialize_message
-        from std_msgs.msg import Float64
-
         meta_doc = {"format": "kilobot-twin/import-v1", "version": __version__, "source": str(Path(dataset).resolve()),
                     "kind": kind, "robots": ds.robots, "trials": trials, "trial_period_s": trial_period_s(ds),
                     "dt_s": ds.dt_s, "duration_s": ds.duration_s,
@@ -138,7 +136,7 @@ def import_dataset(dataset: str | Path, out: str | Path) -> dict:
             elif p[0] == "light":
                 w.robot_sample(robot, stamp, stamp, reading=p[1])
                 w.bag.write(w.channel(f"/kilobot_{robot}/stimulus", "std_msgs/msg/Float64"),
-                            serialize_message(Float64(data=p[2])), stamp)
+                            float64_cdr(p[2]), stamp)
             else:
                 w.robot_sample(robot, stamp, stamp, led=p[1])
     finally:

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from kilobot_twin.cli import main as cli_main
-from kilobot_twin.importer import heading_from_motion, import_dataset, trial_period_s
-from kilobot_twin.measured import Track, load, write
+from kilobot_twin.recording.importer import heading_from_motion, import_dataset, trial_period_s
+from kilobot_twin.recording.measured import Track, load, write
 from kilobot_twin.recording.bag import read_metadata, summary_counts
-from kilobot_twin.viewer.bag_source import from_bag
+from kilobot_twin.recording.swarm_data import from_bag
 
-from .ros.test_bag import rerun_check, rosbags_messages
+from ..ros.test_bag import rerun_check, rosbags_messages
 
 V = 0.0113  # m/s
 L = 0.025   # wheel separation
