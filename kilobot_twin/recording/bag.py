@@ -620,16 +620,6 @@ class BagReader:
         return {self._types[cid][0]: n for cid, n in s.stats.channel_message_counts.items() if cid in self._types}
 
 
-def summary_counts(bag_dir: str | Path) -> dict[str, int]:
-    """Messages per topic (those readable)."""
-    return BagReader(bag_dir).counts()
-
-
-def read_metadata(bag_dir: str | Path) -> dict[str, dict]:
-    """MCAP metadata records by name."""
-    return BagReader(bag_dir).metadata()
-
-
 # --- repair ---------------------------------------------------------------------------------------
 
 def _free_name(path: Path) -> Path:

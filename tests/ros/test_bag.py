@@ -9,7 +9,7 @@ import pytest
 from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
-from kilobot_twin.recording.bag import BagWriter, mcap_path, read_metadata, repair_bag, summary_counts
+from kilobot_twin.recording.bag import BagReader, BagWriter, mcap_path, repair_bag
 from kilobot_twin.recording.schemas import ros2msg_schema
 
 from .message_path import RobotMessages, RobotSample
@@ -75,8 +75,8 @@ def test_written_bag_reads_back_with_rosbags_and_passes_rerun_check(tmp_path):
         assert p.header.frame_id == "arena"
         assert lt.illuminance == s.reading
         assert (ld.r, ld.b) == ((1.0, 0.0) if s.led == 0 else (0.0, 1.0))
-    assert summary_counts(bag)["/kilobot_3/pose"] == 300
-    assert read_metadata(bag)["kilobot_twin"]["seed"] == "5"
+    assert BagReader(bag).counts()["/kilobot_3/pose"] == 300
+    assert BagReader(bag).metadata()["kilobot_twin"]["seed"] == "5"
 
 
 def test_repair_recovers_every_complete_chunk(tmp_path):
