@@ -1,18 +1,5 @@
-"""``analysis``: live swarm metrics from every robot's pose, LED and clock.
-
-Publishes under ``/analysis/``, once every ``period_s`` of simulated time (parameter, default
-1 s; 0 = every step), in this order:
-
-- ``time_s`` (std_msgs/Float64): the simulated time in seconds of the state the metrics below
-  are computed from (the stamp of a swarm's ``robots`` cloud / the robots' poses);
-- std_msgs/Float64, NaN where a metric is undefined (no robots heard; no blink program), so
-  that the k-th message of every metric topic belongs to the k-th ``stamp``:
-  ``led_red_fraction``, ``led_blue_fraction`` (fraction of robots showing red / blue);
-  ``order_parameter`` (Kuramoto order parameter ``|mean exp(i phi)|`` of the robots' blink
-  phases ``phi = 2 pi ticks / (2 half_period_ticks)``); ``mean_distance_to_light_m`` (mean
-  distance of the robots to the light centre); ``covered_area_m2`` (area of the arena's
-  coverage cells visited by any robot up to that time);
-- ``robots`` (std_msgs/UInt32): robots heard from.
+"""``analysis``: live swarm metrics from every robot's pose, LED and clock (the topics under
+``/analysis/``: README, "nodes"; each metric is :mod:`kilobot_twin.core.metrics`).
 
 Robots are discovered on the graph (late joiners included). The robots of a batched ``swarm``
 process are read from its ``robots`` cloud (one message per step for the whole swarm, all
