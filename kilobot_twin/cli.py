@@ -32,7 +32,7 @@ def simulate(config: str, out: str | None = None, traits: str | None = None, see
     check_out_file(out)
     cfg = load_config(config, traits_path=traits, seed=seed, runs=runs, n_robots=robots)
     _connect(scheduler)
-    result = run_campaign(cfg.campaign(), out=out, workers=workers, progress=progress, parquet=parquet,
+    result = run_campaign(cfg, out=out, workers=workers, progress=progress, parquet=parquet,
                           desc=Path(config).stem, scheduler=scheduler)
     result["path"] = out
     return result

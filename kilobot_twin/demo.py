@@ -109,7 +109,7 @@ def run_demo(out: str | Path = "out/demo", quick: bool = False, workers: int | N
     if quick:
         doc["runs"] = 10
     cfg = config_from_dict(doc, source="demo")
-    result = run_campaign(cfg.campaign(), out=out / "results.npz", workers=workers, progress=progress,
+    result = run_campaign(cfg, out=out / "results.npz", workers=workers, progress=progress,
                           parquet=True, desc="phototaxis demo")
     from .core.scenario import bias_axis_scale
 
