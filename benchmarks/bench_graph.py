@@ -29,7 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from kilobot_twin.recording.bag import summary_counts  # noqa: E402
+from kilobot_twin.recording.bag import BagReader  # noqa: E402
 from kilobot_twin.ros.launcher import FASTDDS_PROFILES, run_twin  # noqa: E402
 
 
@@ -119,7 +119,7 @@ def bench_recorder(tmp: Path, rate=55_000.0, seconds=10.0, topics=10):
     rec.wait(60)
     sent, elapsed = pub.stdout.split()
     sent, elapsed = int(sent), float(elapsed)
-    got = sum(summary_counts(out).values())
+    got = sum(BagReader(out).counts().values())
     print(f"recorder: publisher sent {sent} messages in {elapsed:.2f} s ({sent / elapsed:,.0f} msg/s offered over {topics} "
           f"topics); bag holds {got} ({100 * got / sent:.3f} %, lost {sent - got}); "
           f"sustained {got / elapsed:,.0f} msg/s into MCAP (target >= 50,000, no loss)")

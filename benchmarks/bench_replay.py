@@ -26,8 +26,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from kilobot_twin.recording.bag import summary_counts  # noqa: E402
-from kilobot_twin.ros.robot_bag import TwinBagWriter  # noqa: E402
+from kilobot_twin.recording.bag import BagReader  # noqa: E402
+from kilobot_twin.recording.twin_bag import TwinBagWriter  # noqa: E402
 
 
 def synthetic_bag(path: Path, robots: int, hz: float, seconds: float, seed: int = 0, burst: bool = False) -> int:
@@ -83,7 +83,7 @@ def main() -> None:
                     time.sleep(0.5)
                     rec.send_signal(signal.SIGINT)
                     rec.wait(60)
-            got = f", recorder got {sum(summary_counts(out).values())} of {total}" if rec is not None else ""
+            got = f", recorder got {sum(BagReader(out).counts().values())} of {total}" if rec is not None else ""
             print(f"rate {rate:g}x: {s['messages']} msgs in {s['wall_s']:.2f} s ({s['rate_msg_s']:.0f} msg/s); timing error "
                   f"p50 {s['err_p50_ms']:.3f} ms, p99 {s['err_p99_ms']:.3f} ms, max {s['err_max_ms']:.2f} ms{got}"
                   + ("  [target p99 < 5 ms]" if rate == 1 else ""))

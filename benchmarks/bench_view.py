@@ -21,7 +21,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from kilobot_twin.viewer.swarm_data import SwarmRecording, field_raster, led_colours  # noqa: E402
+from kilobot_twin.recording.swarm_data import SwarmRecording, field_raster  # noqa: E402
 
 
 def synthetic(n: int, T: int, seed: int = 0) -> SwarmRecording:
@@ -44,6 +44,8 @@ def synthetic(n: int, T: int, seed: int = 0) -> SwarmRecording:
 
 def naive(rec: SwarmRecording, path: str) -> float:
     import rerun as rr
+
+    from kilobot_twin.viewer.rerun_view import led_colours
 
     t0 = time.perf_counter()
     s = rr.RecordingStream("kilobot_twin_naive")

@@ -32,7 +32,7 @@ def simulate(config: str, out: str | None = None, traits: str | None = None, see
     check_out_file(out)
     cfg = load_config(config, traits_path=traits, seed=seed, runs=runs, n_robots=robots)
     _connect(scheduler)
-    result = run_campaign(cfg.campaign(), out=out, workers=workers, progress=progress, parquet=parquet,
+    result = run_campaign(cfg, out=out, workers=workers, progress=progress, parquet=parquet,
                           desc=Path(config).stem, scheduler=scheduler)
     result["path"] = out
     return result
@@ -151,7 +151,7 @@ def _metadata_value(v: str, width: int = 60) -> str:
 
 def view(source: str, out: str | None = None, spawn: bool = False, point: int = 0, run: int = 0) -> dict:
     """A bag (or a results .npz with trajectories) -> a Rerun recording NAME.rrd with its blueprint."""
-    from .viewer import load_source
+    from .recording.swarm_data import load_source
     from .viewer.rerun_view import write_rrd
 
     rec = load_source(source, point=point, run=run)
@@ -172,7 +172,7 @@ def replay(bag: str, rate: float = 1.0, loop: bool = False, topics: list[str] | 
 
 def import_measured(dataset: str, out: str) -> dict:
     """A measured dataset (measured-v1 folder) -> a bag with the twin's topics and types."""
-    from .importer import import_dataset
+    from .recording.importer import import_dataset
 
     return import_dataset(dataset, out)
 

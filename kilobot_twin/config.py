@@ -23,13 +23,12 @@ it cannot be read on the wrong one; without a preset the paper-axis key is refus
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
 from .batch import Campaign
-from .core.scenario import PRESETS, Scenario, bias_axis_scale, preset_traits, scenario_from_dict
-from .core.traits import SwarmTraits, load_swarm, load_yaml, swarm_from_dict
+from .core.scenario import PRESETS, bias_axis_scale, preset_traits, scenario_from_dict
+from .core.traits import load_swarm, load_yaml, swarm_from_dict
 from .errors import ConfigError
 
 RUN_KEYS = {"scenario", "swarm", "seed", "runs", "grid", "record_every", "trials_from_runs"}
@@ -81,22 +80,6 @@ def _swarm_on_wheel_scale(doc, preset, source):
     return doc
 
 
-@dataclass
-class RunConfig:
-    scenario: Scenario
-    swarm: SwarmTraits
-    seed: int = 0
-    runs: int = 1
-    grid: dict = field(default_factory=dict)
-    record_every: int = 0
-    trials_from_runs: bool = False
-    raw: dict = field(default_factory=dict)
-
-    def campaign(self) -> Campaign:
-        return Campaign(self.scenario, self.swarm, self.seed, self.runs, self.grid, self.record_every,
-                        self.trials_from_runs)
-
-
 def _int(data, key, default, source, minimum=0):
     v = data.get(key, default)
     if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
@@ -105,8 +88,9 @@ def _int(data, key, default, source, minimum=0):
 
 
 def config_from_dict(data: Mapping[str, Any], source: str = "", traits_path: str | None = None,
-                     seed: int | None = None, runs: int | None = None, n_robots: int | None = None) -> RunConfig:
-    """Validated :class:`RunConfig`; command-line values override the file's."""
+                     seed: int | None = None, runs: int | None = None, n_robots: int | None = None) -> Campaign:
+    """The validated :class:`~kilobot_twin.batch.Campaign` of a run configuration; command-line values
+    override the file's."""
     if data is None:
         data = {}
     if not isinstance(data, Mapping):
@@ -136,14 +120,14 @@ def config_from_dict(data: Mapping[str, Any], source: str = "", traits_path: str
     grid = data.get("grid") or {}
     if not isinstance(grid, Mapping) or any(not isinstance(v, list) or not v for v in grid.values()):
         raise ConfigError("grid", "expected a mapping of scenario key: [values]", "write e.g. grid: {behavior.p_right: [0.25, 0.5]}", source)
-    cfg = RunConfig(scenario, swarm, seed, runs, dict(grid), _int(data, "record_every", 0, source),
-                    bool(data.get("trials_from_runs", False)), dict(data))
-    # Surface bad grid values now, with their key, rather than inside a worker.
-    cfg.campaign().points() and [cfg.campaign().scenario_at(p) for p in cfg.campaign().points()]
+    cfg = Campaign(scenario, swarm, seed, runs, dict(grid), _int(data, "record_every", 0, source),
+                   bool(data.get("trials_from_runs", False)))
+    for point in cfg.points():  # surface bad grid values now, with their key, rather than inside a worker
+        cfg.scenario_at(point)
     if scenario.start.kind == "poses":  # every (run, robot) has its start pose
         scenario.start.pose_table(range(runs), swarm.ids, source)
     return cfg
 
 
-def load_config(path: str | Path, **overrides) -> RunConfig:
+def load_config(path: str | Path, **overrides) -> Campaign:
     return config_from_dict(load_yaml(path), source=str(path), **overrides)

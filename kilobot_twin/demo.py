@@ -43,7 +43,7 @@ QUICK_TWIN_S = 30.0  # simulated seconds of the twin in --quick mode
 def run_twin_and_view(out: Path, quick: bool = False, echo=print) -> dict:
     """Run the ROS 2 twin into a bag, convert the bag to a Rerun recording; returns both reports."""
     from .ros.launcher import run_twin
-    from .viewer import load_source
+    from .recording.swarm_data import load_source
     from .viewer.rerun_view import write_rrd
 
     cfg = dict(TWIN, duration=QUICK_TWIN_S if quick else TWIN["duration"])
@@ -109,7 +109,7 @@ def run_demo(out: str | Path = "out/demo", quick: bool = False, workers: int | N
     if quick:
         doc["runs"] = 10
     cfg = config_from_dict(doc, source="demo")
-    result = run_campaign(cfg.campaign(), out=out / "results.npz", workers=workers, progress=progress,
+    result = run_campaign(cfg, out=out / "results.npz", workers=workers, progress=progress,
                           parquet=True, desc="phototaxis demo")
     from .core.scenario import bias_axis_scale
 

@@ -12,8 +12,8 @@ PKG = Path(__file__).resolve().parents[1] / "kilobot_twin"
 RANK = {
     "errors": 0, "outputs": 0, "analysis": 0, "core": 0,  # plain NumPy: the model and array helpers
     "batch": 1, "config": 1,  # campaigns and run configurations
-    "recording": 2, "measured": 2,  # bags and datasets, free of rclpy
-    "ros": 3, "importer": 3,  # ROS adapters (messages, parameters, the launcher)
+    "recording": 2,  # bags and datasets, free of rclpy
+    "ros": 3,  # ROS adapters (messages, parameters, the launcher)
     "nodes": 4,
     "plots": 5,  # drawing helpers shared by the next rank
     "viewer": 6, "gap": 6, "experiments": 6,  # siblings: none imports another

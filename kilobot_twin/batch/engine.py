@@ -75,16 +75,12 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
         nx, ny = scenario.arena.grid_shape
         ip[K.I_COVERAGE], ip[K.I_NX], ip[K.I_NY] = 1, nx, ny
 
-    rec = None
     empty_f, empty_i = np.zeros((0, 0)), np.zeros((0, 0), dtype=np.int8)
     rec_args = (0, empty_f, empty_f, empty_f, empty_f, empty_i)
-    if record_every:
-        T = n // record_every + 1
-        rec = {k: np.empty((R, N, T), dtype=np.float64) for k in ("x", "y", "theta", "reading")}
-        rec.update({k: np.empty((R, N, T), dtype=np.int8) for k in ("led", "motion")})
-        sim._record(rec, st, 0)
+    rec = sim.start_record(st, n, record_every)
+    if rec is not None:
         rec["led"][...] = st.led[..., None]  # no behaviour here drives the LED
-        rec_args = (int(record_every),) + tuple(rec[k].reshape(S, T) for k in ("x", "y", "theta", "reading", "motion"))
+        rec_args = (int(record_every),) + tuple(rec[k].reshape(S, -1) for k in ("x", "y", "theta", "reading", "motion"))
 
     # Report progress about 100 times a run, but give each kernel call at least ~1e5 robot-steps
     # (a call costs some tens of microseconds of argument checking).
@@ -98,19 +94,9 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
         if progress is not None:
             progress(k1 - k0)
 
-    def shaped(a):
-        return a.reshape(R, N)
-
-    summary = {
-        "x": shaped(x), "y": shaped(y), "theta": shaped(th), "cost_m": shaped(cost) / window, "path_m": shaped(path),
-        "switches": np.zeros((R, N), dtype=np.int64), "reading_mean": shaped(rsum) / n, "bias": st.bias,
-    }
-    if cov is not None:
-        summary["coverage_m2"] = cov.area_m2()
-    t = None
-    if rec is not None:
-        t = np.arange(rec["x"].shape[-1]) * record_every * scenario.dt_s
-    return sim.Result(summary=summary, t_s=t, traj=rec, runs=st.runs, robot_ids=st.robot_ids, order=None)
+    x, y, th, cost, path, rsum = (a.reshape(R, N) for a in (x, y, th, cost, path, rsum))
+    return sim.result(st, scenario, (x, y, th), cost, path, np.zeros((R, N), dtype=np.int64), rsum, cov, rec,
+                      record_every)
 
 
 def _parameters(scenario: Scenario, st: sim.SimState):

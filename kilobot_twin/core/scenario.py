@@ -359,41 +359,30 @@ def bias_axis_scale(preset: str | None) -> float:
     return float(PRESETS.get(preset or "", {}).get("bias_axis_scale", 1.0))
 
 
+# The authors' simulator set-up both presets share: 10 ticks/s, 2000 s runs, per-tick uniform wheel
+# noise of +-0.5, a light cone reaching 0 at the corners of a 4 m arena (r = 2.83 m), start points
+# uniform in [-1, 1]^2 shared by all robots of a run.
+_ARGOS_SETUP = {
+    "dt_s": 0.1,
+    "duration_s": 2000.0,
+    "tick_hz": 10.0,
+    "light": {"kind": "cone", "radius_m": 0.7071 * 4.0, "peak": 1024.0},
+    "arena": {"width_m": 4.0, "height_m": 4.0, "walls": False},
+    "start": {"kind": "uniform", "half_width_m": 1.0, "heading_rad": None, "shared": True},
+    "traits": {"wheel_noise": 0.5},
+}
 #: Named starting points. ``traits`` holds population defaults for robots the user does not
 #: describe (used by experiments and ``simulate``) and ``bias_axis_scale`` how the preset reads
 #: the paper's heading-bias axis; neither is a scenario field.
 PRESETS: dict[str, dict] = {
-    # Chosen to reproduce the published figures (docs/presets.md has the evidence):
-    # the authors' simulator's timing (10 ticks/s, 2000 s runs, per-tick uniform wheel noise
-    # +-0.5), the light cone reaching 0 at the corners of a 4 m arena (r = 2.83 m), start points
-    # uniform in [-1, 1]^2 shared by all robots of a run, and the paper's bias axis read as one
-    # tenth of the wheel imbalance: Fig. 1c's colour bar (+-0.02) draws circles of r ~ 0.125 m =
-    # 0.025 m / 0.2; Fig. 5 only takes its shape for scales 8-12 (best 10); Fig. 7's coverage
-    # loss (extremes keep 75 %) appears at scale 10 in the authors' own arena.
-    "paper": {
-        "dt_s": 0.1,
-        "duration_s": 2000.0,
-        "tick_hz": 10.0,
-        "light": {"kind": "cone", "radius_m": 0.7071 * 4.0, "peak": 1024.0},
-        "arena": {"width_m": 4.0, "height_m": 4.0, "walls": False},
-        "start": {"kind": "uniform", "half_width_m": 1.0, "heading_rad": None, "shared": True},
-        "behavior": {"kind": "phototaxis", "reference": 2000.0},
-        "traits": {"wheel_noise": 0.5},
-        "bias_axis_scale": 10.0,
-    },
-    # The authors' ARGoS code as shipped, as far as we know it: 10 ticks/s, 2000 s, per-tick
-    # uniform wheel noise of +-0.5, their phototaxis loop tick by tick (PhototaxisArgos) with
-    # reference 2000 (robots climb the gradient and never 'arrive'), cone with W = 4 m, and the
+    # Chosen to reproduce the published figures (docs/presets.md has the evidence): the paper's
+    # bias axis read as one tenth of the wheel imbalance: Fig. 1c's colour bar (+-0.02) draws
+    # circles of r ~ 0.125 m = 0.025 m / 0.2; Fig. 5 only takes its shape for scales 8-12 (best
+    # 10); Fig. 7's coverage loss (extremes keep 75 %) appears at scale 10 in the authors' own arena.
+    "paper": {**_ARGOS_SETUP, "behavior": {"kind": "phototaxis", "reference": 2000.0}, "bias_axis_scale": 10.0},
+    # The authors' ARGoS code as shipped, as far as we know it: their phototaxis loop tick by tick
+    # (PhototaxisArgos; with reference 2000 robots climb the gradient and never 'arrive') and the
     # paper's bias axis taken literally as the wheel imbalance.
-    "argos-code": {
-        "dt_s": 0.1,
-        "duration_s": 2000.0,
-        "tick_hz": 10.0,
-        "light": {"kind": "cone", "radius_m": 0.7071 * 4.0, "peak": 1024.0},
-        "arena": {"width_m": 4.0, "height_m": 4.0, "walls": False},
-        "start": {"kind": "uniform", "half_width_m": 1.0, "heading_rad": None, "shared": True},
-        "behavior": {"kind": "phototaxis_argos", "reference": 2000.0},
-        "traits": {"wheel_noise": 0.5},
-        "bias_axis_scale": 1.0,
-    },
+    "argos-code": {**_ARGOS_SETUP, "behavior": {"kind": "phototaxis_argos", "reference": 2000.0},
+                   "bias_axis_scale": 1.0},
 }

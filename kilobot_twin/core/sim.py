@@ -243,12 +243,7 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
 
         cov = Coverage(scenario.arena, (R, N))
         cov.mark(st.x, st.y)
-    rec = None
-    if record_every:
-        T = n // record_every + 1
-        rec = {k: np.empty((R, N, T), dtype=np.float64) for k in ("x", "y", "theta", "reading")}
-        rec.update({k: np.empty((R, N, T), dtype=np.int8) for k in ("led", "motion")})
-        _record(rec, st, 0)
+    rec = start_record(st, n, record_every)
     is_blink = isinstance(scenario.behavior, Blink)
     needs_light = scenario.behavior.needs_light
     order = np.empty((R, n + 1)) if is_blink else None
@@ -277,16 +272,32 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
             done = k + 1
     if progress is not None and done < n:
         progress(n - done)
-    summary = {
-        "x": st.x, "y": st.y, "theta": st.theta, "cost_m": cost / window, "path_m": path,
-        "switches": switches, "reading_mean": reading_sum / n, "bias": st.bias,
-    }
+    return result(st, scenario, (st.x, st.y, st.theta), cost, path, switches, reading_sum, cov, rec, record_every, order)
+
+
+def start_record(st: SimState, n_steps: int, record_every: int) -> dict | None:
+    """Trajectory arrays, each (R, N, T), with sample 0 taken; None when ``record_every`` is 0."""
+    if not record_every:
+        return None
+    R, N = st.shape
+    T = n_steps // record_every + 1
+    rec = {k: np.empty((R, N, T), dtype=np.float64) for k in ("x", "y", "theta", "reading")}
+    rec.update({k: np.empty((R, N, T), dtype=np.int8) for k in ("led", "motion")})
+    _record(rec, st, 0)
+    return rec
+
+
+def result(st: SimState, scenario: Scenario, pose, cost_sum, path, switches, reading_sum, cov, rec, record_every: int,
+           order=None) -> Result:
+    """The :class:`Result` of a finished run: final ``pose`` (x, y, theta), sums over the cost window
+    and over the run (turned into means here), the coverage grid and the trajectories."""
+    n = scenario.n_steps
+    summary = {"x": pose[0], "y": pose[1], "theta": pose[2], "cost_m": cost_sum / min(scenario.cost_window_steps, n),
+               "path_m": path, "switches": switches, "reading_mean": reading_sum / n, "bias": st.bias}
     if cov is not None:
         summary["coverage_m2"] = cov.area_m2()
-    t = None
-    if rec is not None:
-        t = np.arange(rec["x"].shape[-1]) * record_every * scenario.dt_s
-    return Result(summary=summary, t_s=t, traj=rec, runs=st.runs, robot_ids=st.robot_ids, order=order)
+    t_s = None if rec is None else np.arange(rec["x"].shape[-1]) * record_every * scenario.dt_s
+    return Result(summary=summary, t_s=t_s, traj=rec, runs=st.runs, robot_ids=st.robot_ids, order=order)
 
 
 def _record(rec, st, i):

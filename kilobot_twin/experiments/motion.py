@@ -44,7 +44,15 @@ def run_straight(s: Settings) -> Outcome:
     ideal = sim.simulate(sc, SwarmTraits.uniform(1), s.seed, record_every=5)
     data["ideal_x"], data["ideal_y"] = ideal.traj["x"][0, 0] - 0.5, ideal.traj["y"][0, 0]
     data["t_s"] = ideal.t_s
+    meta = {"n": n, "duration_s": FIG1_DURATION_S, "bias_axis": FIG1_AXIS, "bias_axis_scale": s.bias_scale,
+            "noise": noise, "seed": s.seed}
+    return Outcome("straight", data, meta, straight_checks(data))
 
+
+def straight_checks(data: dict) -> list[Check]:
+    """Fig. 1 b-d against the paper, from the tracks (robots start at x = -0.5)."""
+    bias = data["bias"]
+    n = len(bias)
     checks = []
     # (c) noiseless: the extreme robots close circles of radius L/|b|.
     x, y = data["c_biased_noiseless_x"], data["c_biased_noiseless_y"]
@@ -67,9 +75,7 @@ def run_straight(s: Settings) -> Outcome:
     r = np.corrcoef(d_est, bias)[0, 1]
     checks.append(Check("1d", "noise on top of bias keeps each robot's curvature", "arcs persist",
                         f"corr(estimated, true bias) = {r:.3f}", r > 0.95))
-    meta = {"n": n, "duration_s": FIG1_DURATION_S, "bias_axis": FIG1_AXIS, "bias_axis_scale": s.bias_scale,
-            "noise": noise, "seed": s.seed}
-    return Outcome("straight", data, meta, checks)
+    return checks
 
 
 def _circle_radius(x, y):
@@ -127,11 +133,21 @@ def run_bias_per_robot(s: Settings) -> Outcome:
                     start={"kind": "origin", "heading_rad": 0.0, "shared": False})
     res = sim.simulate(sc, swarm, s.seed, runs=np.arange(trials), record_every=10)
     est = heading_bias_from_track(res.t_s, res.traj["x"], res.traj["y"])  # (trials, robots)
+    data = {"estimated": est, "true_mu": swarm.heading_bias, "true_sigma": swarm.bias_trial_sd}
+    meta = {"robots": n_robots, "trials": trials, "sigma_ensemble": float(est.std(ddof=1)),
+            "mean_sigma_i": float(est.std(axis=0, ddof=1).mean()), "population": pop, "seed": s.seed}
+    return Outcome("bias_per_robot", data, meta, bias_checks(data))
+
+
+def bias_checks(data: dict) -> list[Check]:
+    """Fig. 2 against the paper, from the biases estimated per trial (trials, robots)."""
+    est = data["estimated"]
+    n_robots = est.shape[1]
     mu_i = est.mean(axis=0)
     sigma_i = est.std(axis=0, ddof=1)
     sigma_ens = est.std(ddof=1)
-    r = np.corrcoef(mu_i, swarm.heading_bias)[0, 1]
-    checks = [
+    r = np.corrcoef(mu_i, data["true_mu"])[0, 1]
+    return [
         Check("2", "ensemble spread exceeds the mean per-robot spread (sigma_i < sigma)",
               "sigma_i < sigma", f"sigma = {sigma_ens:.4f}, mean sigma_i = {sigma_i.mean():.4f}",
               sigma_ens > sigma_i.mean()),
@@ -141,10 +157,6 @@ def run_bias_per_robot(s: Settings) -> Outcome:
               f"mu = {est.mean():+.4f} (se {sigma_ens / np.sqrt(est.size):.4f})",
               abs(est.mean()) < 4 * np.std(mu_i, ddof=1) / np.sqrt(n_robots)),
     ]
-    data = {"estimated": est, "true_mu": swarm.heading_bias, "true_sigma": swarm.bias_trial_sd}
-    meta = {"robots": n_robots, "trials": trials, "sigma_ensemble": float(sigma_ens),
-            "mean_sigma_i": float(sigma_i.mean()), "population": pop, "seed": s.seed}
-    return Outcome("bias_per_robot", data, meta, checks)
 
 
 def plot_bias_per_robot(o: Outcome, out_dir):
@@ -179,14 +191,19 @@ def run_decalibration(s: Settings) -> Outcome:
     res = sim.simulate(sc, traits, s.seed, runs=np.arange(trials), trials=np.arange(trials), record_every=10)
     x, y = res.traj["x"][:, 0], res.traj["y"][:, 0]
     est = heading_bias_from_track(res.t_s, x, y)
+    return Outcome("decalibration", {"x": x, "y": y, "estimated": est},
+                   {"drift_per_trial": drift, "trials": trials, "seed": s.seed}, decalibration_checks(est))
+
+
+def decalibration_checks(est) -> list[Check]:
+    """Fig. 1f against the paper, from one robot's bias estimated in each trial (in order)."""
     from scipy.stats import spearmanr
 
+    trials = len(est)
     rho = spearmanr(np.arange(trials), est).statistic
-    checks = [Check("1f", "one robot drifts from straight to left-curving over 8 trials",
-                    "first trial straight, later ones bend left", f"Spearman rho(trial, bias) = {rho:.2f}; "
-                    f"bias {est[0]:+.4f} -> {est[-1]:+.4f}", rho < -0.8 and est[-1] < -0.01)]
-    return Outcome("decalibration", {"x": x, "y": y, "estimated": est},
-                   {"drift_per_trial": drift, "trials": trials, "seed": s.seed}, checks)
+    return [Check("1f", "one robot drifts from straight to left-curving over 8 trials",
+                  "first trial straight, later ones bend left", f"Spearman rho(trial, bias) = {rho:.2f}; "
+                  f"bias {est[0]:+.4f} -> {est[-1]:+.4f}", rho < -0.8 and est[-1] < -0.01)]
 
 
 def plot_decalibration(o: Outcome, out_dir):

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import measured
+from ..recording import measured
 from ..errors import ConfigError
 from ..recording import cdr
 from ..recording.bag import BagReader

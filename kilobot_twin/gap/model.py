@@ -11,10 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import measured
 from ..batch import engine
 from ..core import sim
 from ..core.traits import SwarmTraits
+from ..recording import measured
 from . import summaries, synth
 
 #: Which summaries each kind compares (the detection/scoring components).

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import measured
+from ..recording import measured
 from ..core import sim
 from ..core.constants import WHEEL_SEPARATION_M
 from ..core.scenario import scenario_from_dict

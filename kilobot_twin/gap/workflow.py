@@ -34,7 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__, measured
+from .. import __version__
+from ..recording import measured
 from ..errors import ConfigError
 from . import effects as E
 from .model import COMPONENTS, Conditions, measured_summaries, simulate

@@ -1,18 +1,5 @@
-"""``analysis``: live swarm metrics from every robot's pose, LED and clock.
-
-Publishes under ``/analysis/``, once every ``period_s`` of simulated time (parameter, default
-1 s; 0 = every step), in this order:
-
-- ``time_s`` (std_msgs/Float64): the simulated time in seconds of the state the metrics below
-  are computed from (the stamp of a swarm's ``robots`` cloud / the robots' poses);
-- std_msgs/Float64, NaN where a metric is undefined (no robots heard; no blink program), so
-  that the k-th message of every metric topic belongs to the k-th ``stamp``:
-  ``led_red_fraction``, ``led_blue_fraction`` (fraction of robots showing red / blue);
-  ``order_parameter`` (Kuramoto order parameter ``|mean exp(i phi)|`` of the robots' blink
-  phases ``phi = 2 pi ticks / (2 half_period_ticks)``); ``mean_distance_to_light_m`` (mean
-  distance of the robots to the light centre); ``covered_area_m2`` (area of the arena's
-  coverage cells visited by any robot up to that time);
-- ``robots`` (std_msgs/UInt32): robots heard from.
+"""``analysis``: live swarm metrics from every robot's pose, LED and clock (the topics under
+``/analysis/``: README, "nodes"; each metric is :mod:`kilobot_twin.core.metrics`).
 
 Robots are discovered on the graph (late joiners included). The robots of a batched ``swarm``
 process are read from its ``robots`` cloud (one message per step for the whole swarm, all
@@ -37,7 +24,7 @@ from std_msgs.msg import ColorRGBA, Float64, String, UInt32
 from ..core.metrics import METRICS
 from ..core.metrics import swarm_metrics as core_metrics
 from ..core.scenario import Scenario
-from ..recording import topics
+from ..recording import cdr, topics
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
 from ..core.scenarios import parse_world_document, scenario_from_document
@@ -105,10 +92,10 @@ class AnalysisNode(Node):
                                                qos.DATA, raw=True)
             elif kind == "led":
                 sub = self.create_subscription(ColorRGBA, topic, lambda data, r=rid: self.led.__setitem__(
-                    r, convert.led_from_cdr(data)), qos.DATA, raw=True)
+                    r, cdr.led(data)), qos.DATA, raw=True)
             else:
                 sub = self.create_subscription(TimeReference, topic, lambda data, r=rid: self.ticks.__setitem__(
-                    r, convert.ticks_from_clock_cdr(data, self.scenario.tick_hz)), qos.DATA, raw=True)
+                    r, cdr.time_reference(data)[1] / cdr.NS_PER_S * self.scenario.tick_hz), qos.DATA, raw=True)
             self._robot_subs.setdefault(rid, []).append(sub)
 
     def _on_members(self, base: str, msg: String) -> None:
@@ -121,7 +108,7 @@ class AnalysisNode(Node):
         self.create_subscription(PointCloud2, topics.swarm_cloud_topic(base), self._on_cloud, qos.DATA, raw=True)
 
     def _on_cloud(self, data: bytes) -> None:
-        stamp, pts = convert.robot_cloud_from_cdr(data)
+        stamp, pts = cdr.robot_cloud(data)
         ids = pts["id"].tolist()
         x, y = pts["x"].tolist(), pts["y"].tolist()
         self.x.update(zip(ids, x))
@@ -134,8 +121,7 @@ class AnalysisNode(Node):
         self._maybe_publish()
 
     def _on_pose(self, rid: int, data: bytes) -> None:
-        x, y = convert.pose_xy_from_cdr(data)
-        stamp = convert.stamp_ns_from_cdr(data)
+        stamp, x, y, _qz, _qw = cdr.pose_stamped(data)
         self.x[rid], self.y[rid] = x, y
         self._visited.append((stamp, [x], [y]))  # coverage cells are computed in bulk at publication
         self._sample(rid, stamp)

@@ -1,21 +1,13 @@
-"""``recorder``: every robot, world and analysis topic into a rosbag2-layout MCAP bag.
+"""``recorder``: every robot, world and analysis topic into a rosbag2-layout MCAP bag (what it
+records and ``~/recorded``: README, "nodes"; the file: :mod:`kilobot_twin.recording.bag`).
 
 Parameters: ``out`` (bag directory, default ``bags/<UTC time>``), ``topics`` (comma-separated
 prefixes, default ``/kilobot_,/swarm,/world,/analysis,/clock``), ``discovery_period_s`` (how often
-the graph is searched for new topics: robots that join late are picked up),
-``chunk_bytes``, ``compression`` (zstd, lz4, none), ``ack_every``.
-
-``~/recorded`` (std_msgs/UInt64): robot data messages (``/kilobot_<id>/{pose,light,led,clock}``)
-written so far, published every ``ack_every`` of them and at 20 Hz when it changed; the world
-paces lockstep runs with it so that no robot message is overwritten before it is recorded.
-
-Subscriptions are raw: the bytes received are written as they are (no deserialise /
-serialise round trip). Transient-local publishers (traits, the world's scenario and light
-field) are subscribed transient-local so that their one message is recorded even if it was
-published before the recorder joined. MCAP metadata record ``kilobot_twin`` holds the package
-version, seed, run, mode, the scenario and every robot's traits; ``metadata.yaml`` is written
-on shutdown (Ctrl-C / SIGTERM). See :func:`kilobot_twin.recording.bag.repair_bag` for a recorder
-that was killed.
+the graph is searched for new topics), ``chunk_bytes``, ``compression`` (zstd, lz4, none),
+``ack_every`` (``~/recorded`` is published every this many robot messages and at 20 Hz when it
+changed). Subscriptions are raw (the bytes received are written as they are); transient-local
+publishers are subscribed transient-local, so that their one message is recorded even if it
+was published before the recorder joined. ``metadata.yaml`` is written on shutdown.
 """
 
 from __future__ import annotations

@@ -1,20 +1,12 @@
-"""``replay``: publish a recorded bag again, on its original topics and types, in recorded time.
+"""``replay``: publish a recorded bag again, on its original topics and types, in recorded time
+(what it publishes, ``/clock``, QoS: README, "Replay, view, import").
 
-Every message is published as the serialized bytes stored in the bag (``Publisher.publish``
-takes ``bytes`` in Jazzy and hands them to ``publish_raw``: no deserialise / serialise round
-trip). Messages go out at their recorded log time, scaled by ``rate`` (2 = twice as fast), from
-a hybrid sleep / busy-wait loop on the monotonic clock. ``/clock`` is replayed as recorded
-when the bag holds it (twin and imported bags do: it is the simulated / measured time), so
-nodes with ``use_sim_time`` see the recording's time; for a bag without ``/clock`` the node
-publishes one from the log time at ``clock_hz`` (as ``ros2 bag play --clock``).
-
-Parameters: ``bag`` (directory), ``rate`` (> 0), ``loop``, ``topics`` (comma-separated exact
-names or prefixes ending in ``/`` or ``*``; empty = all), ``wait_for_subscribers_s`` (before
-playing, wait up to this long until every topic has a subscriber: for recorders that discover
-topics), ``clock_hz``, ``start_delay_s``.
-
-QoS per topic comes from the bag's ``offered_qos_profiles``: documents recorded
-transient-local (traits, the world's scenario and field) are re-published transient-local.
+Parameters: ``bag`` (directory), ``rate`` (> 0; 2 = twice as fast), ``loop``, ``topics``
+(comma-separated exact names or prefixes ending in ``/`` or ``*``; empty = all),
+``wait_for_subscribers_s`` (before playing, wait up to this long until every topic has a
+subscriber: for recorders that discover topics), ``clock_hz`` (the ``/clock`` generated for a
+bag without one), ``start_delay_s``. Messages go out from a hybrid sleep / busy-wait loop on
+the monotonic clock.
 """
 
 from __future__ import annotations

@@ -1,29 +1,16 @@
-"""``robot``: one Kilobot as a ROS 2 node.
+"""``robot``: one Kilobot as a ROS 2 node (topics, parameters and id: README, "nodes").
 
-Publishes, in namespace ``kilobot_<id>`` with relative names, ``pose``, ``light``, ``led``,
-``clock`` (see :mod:`kilobot_twin.ros.convert`) and, transient-local, ``traits``.
-
-Every trait and the behaviour are parameters (defaults from the core dataclasses):
-``robot_id, seed, run, trial, swarm_size``, the traits (``heading_bias`` ... ``clock_rate``),
-``behavior`` (empty, the default: the world's scenario's behaviour) and ``<behavior>.<field>``
-(e.g. ``phototaxis.p_right``; set ones override the world's values), ``world`` (the world
-node's name, default ``/world``).
-
-The robot's id comes from ``robot_id`` (``-p robot_id:=3`` or a launch file's / params file's
-``parameters=[{'robot_id': 3}]``), else from a namespace ``kilobot_<id>`` it was started in;
-the namespace is ``kilobot_<id>`` unless one was given. ``ros2 param set`` on a trait or on
-the behaviour takes effect from the next step (the behaviour's program restarts; the new
-``traits`` record is published) or is refused with the start-up message; the identity
-parameters (id, seed, run, trial, swarm size, world) are read-only.
+Parameters: ``robot_id, seed, run, trial, swarm_size``, the traits (``heading_bias`` ...
+``clock_rate``), ``behavior`` (empty: the world's scenario's behaviour) and
+``<behavior>.<field>`` (set ones override the world's values), ``world`` (the world node's
+name, default ``/world``). ``ros2 param set`` on a trait or the behaviour takes effect from the
+next step (the behaviour's program restarts); the identity parameters are read-only.
 
 The environment (light field, arena, time step, start poses) comes from the world's
-transient-local scenario document, so the robot evaluates the same analytic light field as
-the batch engine without a round trip per reading. Time:
-
-- lockstep: on every ``/clock`` message for its next step, the robot steps once and publishes;
-- realtime: once the world says ``running``, a wall timer of period ``dt_s`` steps it; stamps
-  are wall time since the world's start; the robot's program runs on its own drifting clock
-  (``clock`` topic: ``time_ref`` = kilo_ticks / 31 Hz against the world time in the stamp).
+transient-local scenario document, so the robot evaluates the same analytic light field as the
+batch engine without a round trip per reading. Lockstep: one step per ``/clock`` message for
+its next step; realtime: once the world says ``running``, a wall timer of period ``dt_s``
+(stamps are wall time since the world's start).
 """
 
 from __future__ import annotations
@@ -197,7 +184,7 @@ class RobotNode(Node):
     # --- outputs --------------------------------------------------------------------------------
 
     def publish_sample(self, stamp_ns: int) -> None:
-        """Publish this robot's state (serialized CDR, see :func:`convert.robot_cdr`)."""
+        """Publish this robot's state (serialized CDR, see :func:`kilobot_twin.recording.cdr.robot_cdr`)."""
         pose, light, led, clock = self.model.serialized(stamp_ns, slice(self.col, self.col + 1))
         with_clock = bool(convert.clock_steps(self.model.step_index, self.scenario.dt_s, self.clock_period_s))
         self.publish_serialized(pose[0], light[0], led[0], clock[0] if with_clock else None)

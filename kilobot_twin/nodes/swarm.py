@@ -12,14 +12,9 @@ e.g. ``-r __node:=swarm_1``, so that its ``members`` and ``robots`` topics diffe
 waits for all of them. Kuramoto coupling acts within a process only, so a coupled scenario is
 refused with slices > 1).
 
-A batched swarm also publishes ``~/members`` (std_msgs/String JSON, transient-local: the ids
-it covers) and, after its robots' messages of each step, ``~/robots`` (sensor_msgs/PointCloud2,
-one point per robot: see :mod:`kilobot_twin.ros.convert`); the world's lockstep handshake and
-the analysis read these instead of every robot's topics.
-
-The robots are lean nodes (no parameter services, no rosout) and run their behaviour with
-the world's scenario (the behaviour of the scenario document, unless ``behavior`` is set).
-The process spins in the EventsExecutor.
+A batched swarm also publishes ``~/members`` and ``~/robots`` (README, "nodes"). The robots are
+lean nodes (no parameter services, no rosout) with the world's scenario's behaviour unless
+``behavior`` is set.
 """
 
 from __future__ import annotations

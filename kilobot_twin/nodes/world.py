@@ -44,7 +44,7 @@ from std_msgs.msg import String, UInt64
 
 from ..core.light import raster as light_raster
 from ..core.scenario import Scenario
-from ..recording import topics
+from ..recording import cdr, topics
 from ..ros import convert, params, qos
 from ..ros.executors import run_node, spin_node
 from ..ros.stepping import LockstepPacer
@@ -97,7 +97,7 @@ class WorldNode(Node):
                                                              self.mode, self.clock_period_s)))
         self._publish_state("waiting")
         self._raster = self._field_raster(0.0)
-        self.pub_field.publish(convert.field_image_msg(self._raster, 0))
+        self.pub_field.publish(cdr.image_cdr(self._raster, 0))
         self._next_field_s = 1.0 / self.field_rate_hz
 
         self.finished = Future()
@@ -136,7 +136,7 @@ class WorldNode(Node):
         r = self._field_raster(t_s)
         if not np.array_equal(r, self._raster):
             self._raster = r
-            self.pub_field.publish(convert.field_image_msg(r, convert.step_stamp_ns(1, t_s)))
+            self.pub_field.publish(cdr.image_cdr(r, convert.step_stamp_ns(1, t_s)))
 
     def _publish_state(self, state: str, **extra) -> None:
         self.pub_state.publish(convert.json_msg({"state": state, "mode": self.mode, **extra}))
@@ -216,7 +216,7 @@ class WorldNode(Node):
         dt = self.scenario.dt_s
         for k in self.pacer.next_steps(self.await_recorder and not self._ack_timed_out()):
             self._maybe_update_field(k * dt)
-            self.pub_clock.publish(convert.clock_msg(convert.step_stamp_ns(k, dt)))
+            self.pub_clock.publish(cdr.clock_cdr(convert.step_stamp_ns(k, dt)))
         if self.pacer.all_reported:
             self._wait_for_recorder_then_finish()
 
@@ -229,7 +229,7 @@ class WorldNode(Node):
 
     def _report(self, data: bytes, robots: int) -> None:
         """``robots`` robots have published the step in the stamp of ``data``."""
-        if self.pacer.step >= 0 and not self.end_wall_ns and self.pacer.report(convert.stamp_ns_from_cdr(data), robots):
+        if self.pacer.step >= 0 and not self.end_wall_ns and self.pacer.report(cdr.stamp_ns(data), robots):
             self._advance()
 
     # --- recorder back-pressure -----------------------------------------------------------------------
@@ -267,7 +267,7 @@ class WorldNode(Node):
 
     def _on_clock_timer(self) -> None:
         elapsed = time.time_ns() - self.start_wall_ns
-        self.pub_clock.publish(convert.clock_msg(elapsed))
+        self.pub_clock.publish(cdr.clock_cdr(elapsed))
         self._maybe_update_field(elapsed / convert.NS_PER_S)
         if elapsed >= self.scenario.duration_s * convert.NS_PER_S:
             self._clock_timer.cancel()

@@ -612,23 +612,6 @@ class BagReader:
                 out[tt[0]] += 1
         return out
 
-    def summary_counts(self) -> dict[str, int] | None:
-        """Messages per topic as the file's summary states them (``None`` without a summary)."""
-        s = self._scan
-        if s.stats is None:
-            return None
-        return {self._types[cid][0]: n for cid, n in s.stats.channel_message_counts.items() if cid in self._types}
-
-
-def summary_counts(bag_dir: str | Path) -> dict[str, int]:
-    """Messages per topic (those readable)."""
-    return BagReader(bag_dir).counts()
-
-
-def read_metadata(bag_dir: str | Path) -> dict[str, dict]:
-    """MCAP metadata records by name."""
-    return BagReader(bag_dir).metadata()
-
 
 # --- repair ---------------------------------------------------------------------------------------
 

@@ -253,10 +253,10 @@ def _stop(c: Child, timeout_s: float) -> None:
 
 
 def _fill_report(report: RunReport, swarm_stats: list[Path], world_stats: Path, dt_s: float) -> None:
-    from ..recording.bag import summary_counts
+    from ..recording.bag import BagReader
 
     try:
-        report.counts = summary_counts(report.bag)
+        report.counts = BagReader(report.bag).counts()
     except Exception as exc:  # noqa: BLE001 - reported, not raised: the run is over
         report.problems.append(f"could not read the bag summary: {exc}")
     if world_stats.is_file():

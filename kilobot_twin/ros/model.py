@@ -1,6 +1,6 @@
 """The physics a robot node runs: the core's step function on a (1, 1) or (1, N) state.
 
-No node code here (ROS message types only through :mod:`.convert`'s CDR layout). A standalone robot node owns a :class:`RobotModel` (one robot, exactly
+No node code here (messages only as CDR bytes, :mod:`kilobot_twin.recording.cdr`). A standalone robot node owns a :class:`RobotModel` (one robot, exactly
 ``sim.init_state(..., robot_index=[i])`` + ``sim.step``). A ``swarm`` process in lockstep mode
 steps all its robots in one vectorised call (:class:`SwarmModel`); since every random number
 is keyed by (seed, run, robot), each robot's trajectory is the same either way, and Kuramoto
@@ -14,7 +14,8 @@ import numpy as np
 from ..core import sim
 from ..core.scenario import Scenario
 from ..core.traits import RobotTraits, SwarmTraits
-from .convert import robot_cdr, robot_cloud_cdr
+from ..recording.cdr import robot_cdr
+from .convert import robot_cloud_cdr
 from ..core.scenarios import start_pose
 
 
@@ -53,7 +54,7 @@ class SwarmModel:
 
     def serialized(self, stamp_ns, cols=slice(None)):
         """Serialized ``(pose, light, led, clock)`` lists for columns ``cols`` (all by default),
-        stamped ``stamp_ns`` (one value or one per column): see :func:`convert.robot_cdr`."""
+        stamped ``stamp_ns`` (one value or one per column): see :func:`kilobot_twin.recording.cdr.robot_cdr`."""
         st = self.state
         return robot_cdr(stamp_ns, st.x[0, cols], st.y[0, cols], st.theta[0, cols], st.reading[0, cols],
                          np.broadcast_to(self.variance, st.x.shape[1:])[cols], st.led[0, cols], st.ticks[0, cols],

@@ -1,28 +1,13 @@
-"""A :class:`SwarmRecording` -> a Rerun recording (``.rrd``) with a saved blueprint.
+"""A :class:`SwarmRecording` -> a Rerun recording (``.rrd``) with a saved blueprint (what it shows:
+README, "Replay, view, import").
 
 Everything time-varying is sent with the columnar API (``rr.send_columns``): one call per
-entity for the whole recording instead of one ``rr.log`` per robot per step.
-
-Entities (timeline ``time``, a duration in s), the arena in metres (x right, y up, seen from
-above in a 3-D view with a 0.5 m grid; hovering shows arena coordinates in m):
-
-- ``arena`` (static ViewCoordinates RFU): x right, y forward (up on screen), z towards the eye;
-- ``arena/light_field`` (static Mesh3D): the light field as a texture over its extent in m,
-  dark (low) to yellow (high);
-- ``arena/bounds`` (static LineStrips3D): the arena's edge;
-- ``arena/light_center`` (static Points3D): the light centre;
-- ``arena/trajectories`` (static LineStrips3D): each robot's whole path, coloured by its
-  heading bias on the paper's map (red = left / negative, blue = right / positive), split at
-  tracking gaps;
-- ``arena/robots`` (Points3D per step): every robot (radius 1.7 cm, a Kilobot's body) in its
-  current LED colour (grey: unknown);
-- ``arena/headings`` (Arrows3D per step): heading arrows;
-- ``light/kilobot_<id>`` (Scalars): each robot's raw light reading;
-- ``metrics/<name>`` (Scalars): red / blue LED fraction, order parameter (blink), mean
-  distance to the light, computed from the robots' arrays; ``metrics/recorded/<name>``: what
-  the analysis node recorded in the bag;
-- ``traits`` (static TextDocument): a markdown table of every robot's traits; heading biases in
-  it are the wheel imbalance b (the model's scale, as in traits files), never the paper's axis.
+entity for the whole recording instead of one ``rr.log`` per robot per step. Entities (timeline
+``time``, a duration in s; the arena in metres, x right, y up): static ``arena`` (view
+coordinates), ``arena/light_field`` (textured mesh), ``arena/bounds``, ``arena/light_center``,
+``arena/trajectories`` (coloured by heading bias, split at gaps) and ``traits`` (markdown table);
+per step ``arena/robots`` (LED colour), ``arena/headings``, ``light/kilobot_<id>``,
+``metrics/<name>`` and ``metrics/recorded/<name>`` (what the analysis node recorded).
 """
 
 from __future__ import annotations
@@ -34,10 +19,41 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from .swarm_data import SwarmRecording, bias_colours, led_colours
+from ..core.constants import LED_BLUE, LED_OFF, LED_RED
+from ..recording.swarm_data import SwarmRecording
 
 APP_ID = "kilobot_twin"
 TIMELINE = "time"
+
+
+# --- colours -------------------------------------------------------------------------------------
+
+#: The paper's heading-bias map (as kilobot_twin.plots.bias_cmap): red (left, b < 0) -> purple -> blue (right).
+_BIAS_STOPS = np.array([[1.0, 0.0, 0.0], [0.5, 0.0, 0.5], [0.0, 0.35, 1.0]])
+
+
+def bias_colours(bias: np.ndarray, limit: float | None = None) -> np.ndarray:
+    """(N, 3) uint8 RGB of heading biases on the paper's map, symmetric around 0 (grey if unknown)."""
+    bias = np.asarray(bias, dtype=np.float64)
+    ok = np.isfinite(bias)
+    lim = limit if limit else (float(np.max(np.abs(bias[ok]))) if ok.any() else 1.0) or 1.0
+    u = np.clip((np.where(ok, bias, 0.0) / lim + 1.0) / 2.0, 0.0, 1.0) * 2.0  # 0..2 over two segments
+    i = np.minimum(u.astype(int), 1)
+    f = (u - i)[:, None]
+    rgb = _BIAS_STOPS[i] * (1 - f) + _BIAS_STOPS[i + 1] * f
+    rgb[~ok] = 0.5
+    return np.round(rgb * 255).astype(np.uint8)
+
+
+def led_colours(led: np.ndarray) -> np.ndarray:
+    """(..., 4) uint8 RGBA of LED states: red, blue, dark grey when off, light grey when unknown."""
+    led = np.asarray(led)
+    out = np.empty(led.shape + (4,), dtype=np.uint8)
+    out[...] = (200, 200, 200, 255)
+    out[led == LED_RED] = (230, 20, 20, 255)
+    out[led == LED_BLUE] = (20, 60, 240, 255)
+    out[led == LED_OFF] = (60, 60, 60, 255)
+    return out
 
 
 def blueprint(rec: SwarmRecording | None = None) -> rrb.Blueprint:

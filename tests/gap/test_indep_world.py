@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kilobot_twin import measured
+from kilobot_twin.recording import measured
 from kilobot_twin.gap.model import measured_summaries
 
 _spec = importlib.util.spec_from_file_location("indep_world", Path(__file__).parents[2] / "benchmarks" / "indep_world.py")

@@ -8,7 +8,7 @@ by (1 + 1/3 + 4/2) = 3.3 trial variances, and the gap of the true model is far f
 import numpy as np
 import pytest
 
-from kilobot_twin import measured
+from kilobot_twin.recording import measured
 from kilobot_twin.gap import effects as E
 from kilobot_twin.gap.model import measured_summaries
 from kilobot_twin.gap.synth import synth

@@ -71,7 +71,7 @@ def _per_robot_tolerance(ds_dir, component, trials):
     per-robot parameter fitted from that mean. The trial-to-trial sd is pooled over robots (they
     share the noise; one robot's 4 trials give an sd with 3 degrees of freedom, often half the
     true one)."""
-    from kilobot_twin import measured
+    from kilobot_twin.recording import measured
     from kilobot_twin.gap.model import measured_summaries
 
     _, s = measured_summaries(measured.load(ds_dir))
@@ -142,8 +142,8 @@ def test_named_exactly_over_seeds(tmp_path, hidden):
 
 def test_gap_reads_an_imported_bag_like_its_dataset(tmp_path):
     from kilobot_twin.gap.bags import dataset_from_bag
-    from kilobot_twin.importer import import_dataset
-    from kilobot_twin import measured
+    from kilobot_twin.recording.importer import import_dataset
+    from kilobot_twin.recording import measured
 
     ds_dir = tmp_path / "ds"
     synth("motion", "heading_bias", ds_dir, seed=5, robots=6, trials=3)
@@ -163,7 +163,7 @@ def test_gap_reads_an_imported_bag_like_its_dataset(tmp_path):
 def test_gap_refuses_a_single_run_bag_with_one_line(tmp_path):
     from kilobot_twin.errors import ConfigError
     from kilobot_twin.gap.bags import dataset_from_bag
-    from kilobot_twin.ros.robot_bag import TwinBagWriter
+    from kilobot_twin.recording.twin_bag import TwinBagWriter
 
     w = TwinBagWriter(str(tmp_path / "b"))
     w.close()

@@ -103,7 +103,7 @@ def test_live_metrics_equal_a_recomputation_from_the_robot_topics(kind, tmp_path
     else:
         assert 0 < max(got["led_red_fraction"]) and 0 < max(got["led_blue_fraction"])
     # The viewer puts each recorded value at its simulated time, without the undefined ones.
-    from kilobot_twin.viewer.bag_source import from_bag
+    from kilobot_twin.recording.swarm_data import from_bag
 
     rec = from_bag(out)
     t, v = rec.recorded_metrics["mean_distance_to_light_m"]

@@ -1,5 +1,7 @@
 """Lockstep: world + swarm nodes reproduce the batch engine to 1e-9 (same seed, traits, scenario)."""
 
+import math
+
 import numpy as np
 import pytest
 from geometry_msgs.msg import PoseStamped
@@ -9,6 +11,7 @@ from std_msgs.msg import ColorRGBA
 from kilobot_twin.core import sim
 from kilobot_twin.nodes.swarm import SwarmNode
 from kilobot_twin.nodes.world import WorldNode
+from kilobot_twin.recording.cdr import led_from_rgba
 from kilobot_twin.ros import convert, qos
 from kilobot_twin.core.scenarios import load_swarm_traits, named_scenario
 
@@ -24,9 +27,10 @@ class Collector(Node):
         self.leds = {i: [] for i in range(n)}
         for i in range(n):
             self.create_subscription(PoseStamped, f"/kilobot_{i}/pose", lambda m, i=i: self.poses[i].append(
-                (convert.time_to_ns(m.header.stamp), *convert.pose_to_xytheta(m))), qos.DATA)
+                (m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m.pose.position.x, m.pose.position.y,
+                 2 * math.atan2(m.pose.orientation.z, m.pose.orientation.w))), qos.DATA)
             self.create_subscription(ColorRGBA, f"/kilobot_{i}/led",
-                                     lambda m, i=i: self.leds[i].append(convert.led_from_color(m)), qos.DATA)
+                                     lambda m, i=i: self.leds[i].append(led_from_rgba(m.r, m.g, m.b, m.a)), qos.DATA)
 
 
 @pytest.mark.parametrize("scenario,batched", [("phototaxis", False), ("random_walk", True), ("sync", True)])

@@ -9,7 +9,8 @@ from rclpy.parameter import Parameter
 from kilobot_twin.cli import main as cli_main
 from kilobot_twin.nodes.recorder import RecorderNode
 from kilobot_twin.nodes.replay import ReplayNode, load_bag, qos_from_yaml, topic_selected
-from kilobot_twin.ros.robot_bag import DATA_QOS, LATCHED_QOS, TwinBagWriter
+from kilobot_twin.recording.topics import DATA_QOS, LATCHED_QOS
+from kilobot_twin.recording.twin_bag import TwinBagWriter
 from kilobot_twin.recording.bag import BagReader
 
 from ..ros.test_bag import rerun_check, rosbags_messages

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from kilobot_twin.core import sim
-from kilobot_twin.recording.bag import mcap_path, read_metadata, summary_counts
+from kilobot_twin.recording.bag import BagReader, mcap_path
 from kilobot_twin.ros.convert import CLOUD_DTYPE
 from kilobot_twin.ros.launcher import run_twin
 from kilobot_twin.core.scenarios import load_swarm_traits, named_scenario
@@ -34,13 +34,13 @@ def test_run_lockstep_bag_equals_batch_and_holds_run_metadata(tmp_path):
     assert res.returncode == 0, res.stdout + res.stderr
     assert "real-time factor" in res.stdout and str(out) in res.stdout
     assert rerun_check(mcap_path(out)).returncode == 0
-    counts = summary_counts(out)
+    counts = BagReader(out).counts()
     for i in range(4):
         for t in ("pose", "light", "led"):
             assert counts[f"/kilobot_{i}/{t}"] == 31, (i, t)
         assert counts[f"/kilobot_{i}/clock"] == 4  # once per simulated second: t = 0, 1, 2, 3 s
     assert counts["/swarm/robots"] == 31 and counts["/swarm/members"] == 1
-    meta = read_metadata(out)["kilobot_twin"]
+    meta = BagReader(out).metadata()["kilobot_twin"]
     assert json.loads(meta["seed"]) == 5 and meta["version"]
     assert set(json.loads(meta["traits"])) == {"0", "1", "2", "3"}
     assert json.loads(meta["scenario"])["behavior"]["kind"] == "random_walk"
@@ -156,7 +156,7 @@ def test_crashed_swarm_is_reported_and_the_bag_is_still_finalised(tmp_path):
     assert any(f"swarm exited early with code {-signal.SIGKILL}" in p for p in rep.problems), rep.problems
     assert rerun_check(mcap_path(out)).returncode == 0
     assert (out / "metadata.yaml").exists()
-    assert summary_counts(out)["/kilobot_0/pose"] > 10  # what was published before the crash is in the bag
+    assert BagReader(out).counts()["/kilobot_0/pose"] > 10  # what was published before the crash is in the bag
 
 
 def test_sigterm_on_run_finalises_the_bag(tmp_path):
@@ -175,7 +175,7 @@ def test_sigterm_on_run_finalises_the_bag(tmp_path):
     assert "interrupted" in stdout
     assert (out / "metadata.yaml").exists()
     assert rerun_check(mcap_path(out)).returncode == 0
-    assert summary_counts(out)["/kilobot_0/pose"] >= 5
+    assert BagReader(out).counts()["/kilobot_0/pose"] >= 5
 
 
 def test_recorder_killed_with_sigkill_leaves_a_repairable_bag(tmp_path):
@@ -260,7 +260,7 @@ def test_sigint_to_the_whole_process_group_finalises_the_bag(tmp_path, tries):
         assert not any("Traceback" in text for text in logs.values()), (k, logs)
         assert finalised, (k, logs)
         assert rerun_check(mcap_path(out)).returncode == 0
-        assert summary_counts(out)["/kilobot_0/pose"] > 0
+        assert BagReader(out).counts()["/kilobot_0/pose"] > 0
 
 
 def test_one_swarm_over_three_processes_records_what_one_process_records(tmp_path):

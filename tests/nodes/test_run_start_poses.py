@@ -13,7 +13,7 @@ from pathlib import Path
 
 import yaml
 
-from kilobot_twin.recording.bag import read_metadata
+from kilobot_twin.recording.bag import BagReader
 
 from ..ros.test_bag import rosbags_messages
 
@@ -40,7 +40,7 @@ def test_run_starts_robots_at_the_file_poses(tmp_path):
         assert (first.pose.position.x, first.pose.position.y) == (x, y)
         q = first.pose.orientation
         assert math.isclose(2 * math.atan2(q.z, q.w), th, abs_tol=1e-12)
-    doc = json.loads(read_metadata(out)["kilobot_twin"]["scenario"])
+    doc = json.loads(BagReader(out).metadata()["kilobot_twin"]["scenario"])
     assert doc["start"]["kind"] == "poses"
     assert {int(k): v for k, v in doc["start"]["poses"].items()} == POSES
 

@@ -9,9 +9,10 @@ import pytest
 from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
-from kilobot_twin.ros import convert
-from kilobot_twin.recording.bag import BagWriter, mcap_path, read_metadata, repair_bag, summary_counts
+from kilobot_twin.recording.bag import BagReader, BagWriter, mcap_path, repair_bag
 from kilobot_twin.recording.schemas import ros2msg_schema
+
+from .message_path import RobotMessages, RobotSample
 
 RERUN = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
 
@@ -38,9 +39,9 @@ def test_schema_lists_every_dependency_once():
 
 
 def _pose(i):
-    s = convert.RobotSample(robot_id=3, step=i, stamp_ns=i * 100_000_000, x_m=0.25 + i * 1e-3, y_m=-1.5 + i * 1e-7,
+    s = RobotSample(robot_id=3, step=i, stamp_ns=i * 100_000_000, x_m=0.25 + i * 1e-3, y_m=-1.5 + i * 1e-7,
                             theta_rad=0.3 + 0.01 * i, reading=512.0 + i, led=i % 2, ticks=3.1 * i, tick_hz=31.0)
-    return convert.RobotMessages().fill(s), s
+    return RobotMessages().fill(s), s
 
 
 def test_written_bag_reads_back_with_rosbags_and_passes_rerun_check(tmp_path):
@@ -74,8 +75,8 @@ def test_written_bag_reads_back_with_rosbags_and_passes_rerun_check(tmp_path):
         assert p.header.frame_id == "arena"
         assert lt.illuminance == s.reading
         assert (ld.r, ld.b) == ((1.0, 0.0) if s.led == 0 else (0.0, 1.0))
-    assert summary_counts(bag)["/kilobot_3/pose"] == 300
-    assert read_metadata(bag)["kilobot_twin"]["seed"] == "5"
+    assert BagReader(bag).counts()["/kilobot_3/pose"] == 300
+    assert BagReader(bag).metadata()["kilobot_twin"]["seed"] == "5"
 
 
 def test_repair_recovers_every_complete_chunk(tmp_path):

@@ -8,14 +8,17 @@ from sensor_msgs.msg import Illuminance, PointCloud2, TimeReference
 from std_msgs.msg import ColorRGBA
 
 from kilobot_twin.core.constants import LED_BLUE, LED_OFF, LED_RED
+from kilobot_twin.recording import cdr
 from kilobot_twin.ros import convert
+
+from .message_path import RobotMessages, RobotSample
 
 TYPES = (PoseStamped, Illuminance, ColorRGBA, TimeReference)
 
 
 def _samples(n=64, seed=3):
     rng = np.random.default_rng(seed)
-    return [convert.RobotSample(robot_id=i, step=7, stamp_ns=int(rng.integers(0, 4 * 10**12)),
+    return [RobotSample(robot_id=i, step=7, stamp_ns=int(rng.integers(0, 4 * 10**12)),
                                 x_m=float(rng.normal()), y_m=float(rng.normal()),
                                 theta_rad=float(rng.uniform(-np.pi, np.pi)), reading=float(rng.uniform(0, 1023)),
                                 led=int(rng.choice([LED_RED, LED_BLUE, LED_OFF])), ticks=float(rng.uniform(0, 1e5)),
@@ -27,9 +30,9 @@ def test_vectorised_cdr_decodes_to_the_message_path():
     samples = _samples()
     cols = [np.array([getattr(s, k) for s in samples]) for k in
             ("stamp_ns", "x_m", "y_m", "theta_rad", "reading", "reading_variance", "led", "ticks")]
-    encoded = convert.robot_cdr(*cols, tick_hz=31.0)
+    encoded = cdr.robot_cdr(*cols, tick_hz=31.0)
     for i, s in enumerate(samples):
-        msgs = convert.RobotMessages().fill(s)
+        msgs = RobotMessages().fill(s)
         for cls, topic, data in zip(TYPES, ("pose", "light", "led", "clock"), (e[i] for e in encoded)):
             ref = getattr(msgs, topic)
             assert deserialize_message(data, cls) == ref, (i, topic)
@@ -38,16 +41,17 @@ def test_vectorised_cdr_decodes_to_the_message_path():
 
 def test_cdr_readers_match_the_message_readers():
     s = _samples(1)[0]
-    pose, _light, led, clock = (e[0] for e in convert.robot_cdr(
+    pose, _light, led, clock = (e[0] for e in cdr.robot_cdr(
         s.stamp_ns, s.x_m, s.y_m, s.theta_rad, s.reading, s.reading_variance, s.led, s.ticks, 31.0))
-    msgs = convert.RobotMessages().fill(s)
-    assert convert.pose_xy_from_cdr(pose) == convert.pose_to_xytheta(msgs.pose)[:2]
-    assert convert.led_from_cdr(led) == convert.led_from_color(msgs.led) == s.led
-    assert convert.ticks_from_clock_cdr(clock, 31.0) == convert.ticks_from_clock(msgs.clock, 31.0)
-    assert convert.stamp_ns_from_cdr(pose) == s.stamp_ns
+    msgs = RobotMessages().fill(s)
+    p, q = msgs.pose.pose.position, msgs.pose.pose.orientation
+    assert cdr.pose_stamped(pose)[1:] == (p.x, p.y, q.z, q.w)
+    assert cdr.led(led) == s.led
+    assert cdr.time_reference(clock)[1] == msgs.clock.time_ref.sec * 10**9 + msgs.clock.time_ref.nanosec
+    assert cdr.stamp_ns(pose) == s.stamp_ns
     # Readers also take what rclpy serializes (other publishers, other frame ids).
     msgs.pose.header.frame_id = "a_much_longer_frame"
-    assert convert.pose_xy_from_cdr(serialize_message(msgs.pose)) == (s.x_m, s.y_m)
+    assert cdr.pose_stamped(serialize_message(msgs.pose))[1:3] == (s.x_m, s.y_m)
 
 
 def test_publisher_accepts_serialized_bytes():
@@ -60,7 +64,7 @@ def test_publisher_accepts_serialized_bytes():
     try:
         node = Node("cdr_pub", context=ctx)
         pub = node.create_publisher(PoseStamped, "cdr_test_pose", 10)
-        pub.publish(convert.robot_cdr(0, 0.0, 0.0, 0.0, 0.0, 0.0, LED_OFF, 0.0, 31.0)[0][0])
+        pub.publish(cdr.robot_cdr(0, 0.0, 0.0, 0.0, 0.0, 0.0, LED_OFF, 0.0, 31.0)[0][0])
         with pytest.raises(TypeError):
             pub.publish(bytearray(84))
         node.destroy_node()
@@ -78,10 +82,10 @@ def test_robot_cloud_decodes_with_rclpy_and_our_reader():
     m = deserialize_message(raw, PointCloud2)
     assert convert.time_to_ns(m.header.stamp) == 12_345_678_901 and m.header.frame_id == "arena"
     assert (m.height, m.width, m.point_step, m.row_step) == (1, n, 56, 56 * n) and m.is_dense
-    assert [(f.name, f.offset) for f in m.fields] == [(k, convert.CLOUD_DTYPE.fields[k][1])
-                                                       for k in convert.CLOUD_DTYPE.names]
-    pts = np.frombuffer(bytes(m.data), dtype=convert.CLOUD_DTYPE)
-    stamp, ours = convert.robot_cloud_from_cdr(raw)
+    assert [(f.name, f.offset) for f in m.fields] == [(k, cdr.CLOUD_DTYPE.fields[k][1])
+                                                       for k in cdr.CLOUD_DTYPE.names]
+    pts = np.frombuffer(bytes(m.data), dtype=cdr.CLOUD_DTYPE)
+    stamp, ours = cdr.robot_cloud(raw)
     assert stamp == 12_345_678_901
     for p in (pts, ours):
         np.testing.assert_array_equal(p["id"], ids)
@@ -92,7 +96,7 @@ def test_robot_cloud_decodes_with_rclpy_and_our_reader():
         np.testing.assert_allclose(np.exp(1j * p["theta"]), np.exp(1j * theta), atol=1e-12)
         assert np.all(np.abs(p["theta"]) <= np.pi)
     # A different swarm size gets its own layout.
-    assert convert.robot_cloud_from_cdr(convert.robot_cloud_cdr(0, [1], 0, 0, 0, 0, 0, 0))[1].shape == (1,)
+    assert cdr.robot_cloud(convert.robot_cloud_cdr(0, [1], 0, 0, 0, 0, 0, 0))[1].shape == (1,)
 
 
 @pytest.mark.parametrize("dt,period,n_steps,expected", [
@@ -118,18 +122,18 @@ def test_robot_cloud_reader_parses_from_the_front(frame_id, padding):
     from sensor_msgs.msg import PointField
 
     n = 5
-    pts = np.zeros(n, dtype=convert.CLOUD_DTYPE)
+    pts = np.zeros(n, dtype=cdr.CLOUD_DTYPE)
     pts["id"], pts["led"] = np.arange(10, 10 + n), [0, 1, 2, 1, 0]
     pts["x"], pts["y"], pts["ticks"] = np.linspace(-1, 1, n), np.linspace(2, 3, n), np.arange(n) * 31.0
     m = PointCloud2()
     m.header.frame_id = frame_id
     m.header.stamp.sec, m.header.stamp.nanosec = 7, 250
     m.height, m.width = 1, n
-    m.fields = [PointField(name=k, offset=convert.CLOUD_DTYPE.fields[k][1], datatype=dt, count=1)
+    m.fields = [PointField(name=k, offset=cdr.CLOUD_DTYPE.fields[k][1], datatype=dt, count=1)
                 for k, _, dt in convert.CLOUD_FIELDS]
     m.point_step, m.row_step, m.is_dense = pts.itemsize, pts.nbytes, True
     m.data = pts.tobytes()
     raw = serialize_message(m) + bytes(padding)
-    stamp, got = convert.robot_cloud_from_cdr(raw)
+    stamp, got = cdr.robot_cloud(raw)
     assert stamp == 7 * 10**9 + 250
     np.testing.assert_array_equal(got, pts)

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from kilobot_twin.core.constants import LED_BLUE, LED_RED
-from kilobot_twin.viewer.swarm_data import SwarmRecording, bias_colours, field_raster
+from kilobot_twin.recording.swarm_data import SwarmRecording, field_raster
 
 rr_chunk = pytest.importorskip("rerun.chunk")
 
-from kilobot_twin.viewer.rerun_view import write_rrd  # noqa: E402
+from kilobot_twin.viewer.rerun_view import bias_colours, write_rrd  # noqa: E402
 
 RERUN = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
 

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from kilobot_twin import measured
+from kilobot_twin.recording import measured
 from kilobot_twin.errors import ConfigError
 
 META = """format: kilobot-twin/measured-v1

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 FORMAT = "kilobot-twin/measured-v1"
 KINDS = ("motion", "light_sweep", "blink")
@@ -113,7 +113,7 @@ def _typename(types):
 
 
 def load_meta(folder: Path) -> dict:
-    from .core.traits import load_yaml
+    from ..core.traits import load_yaml
 
     path = folder / "meta.yaml"
     if not path.is_file():

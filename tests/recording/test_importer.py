@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from kilobot_twin.cli import main as cli_main
-from kilobot_twin.importer import heading_from_motion, import_dataset, trial_period_s
-from kilobot_twin.measured import Track, load, write
-from kilobot_twin.recording.bag import read_metadata, summary_counts
-from kilobot_twin.viewer.bag_source import from_bag
+from kilobot_twin.recording.importer import heading_from_motion, import_dataset, trial_period_s
+from kilobot_twin.recording.measured import Track, load, write
+from kilobot_twin.recording.bag import BagReader
+from kilobot_twin.recording.swarm_data import from_bag
 
-from .ros.test_bag import rerun_check, rosbags_messages
+from ..ros.test_bag import rerun_check, rosbags_messages
 
 V = 0.0113  # m/s
 L = 0.025   # wheel separation
@@ -47,10 +47,10 @@ def test_motion_import_keeps_values_gaps_and_trial_boundaries(tmp_path):
     res = import_dataset(ds, tmp_path / "bags" / "m")
     bag = res["path"]
     assert rerun_check(bag / "m_0.mcap").returncode == 0
-    counts = summary_counts(bag)
+    counts = BagReader(bag).counts()
     assert counts["/kilobot_3/pose"] == 2 * 101 - 10 and counts["/kilobot_5/pose"] == 202
     assert counts["/world/trial"] == 2
-    meta = read_metadata(bag)["kilobot_twin.import"]
+    meta = BagReader(bag).metadata()["kilobot_twin.import"]
     trials = json.loads(meta["trials"])
     period = trial_period_s(load(ds))
     assert [t["start_ns"] for t in trials] == [0, int(period * 1e9)]

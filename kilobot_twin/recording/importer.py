@@ -1,26 +1,10 @@
-"""``kilobot-twin import``: a measured dataset (measured-v1) -> a bag with the twin's topics and types.
+"""``kilobot-twin import``: a measured dataset (measured-v1) -> a bag with the twin's topics and
+types, so that ``view``, ``replay`` and the gap workflow take measured and simulated runs alike.
 
-So that ``view``, ``replay`` and the gap workflow take measured and simulated runs alike.
-
-- **One bag per dataset; trials one after another in time.** Trial ``k`` starts at
-  ``k * trial_period_s`` with ``trial_period_s = duration_s + max(1 s, 2 dt_s)``: the pause
-  between trials is a gap in every track (the viewer breaks trajectories there). Trial
-  boundaries are in the MCAP metadata record ``kilobot_twin.import`` (``trials``: trial,
-  start_ns, end_ns) and on ``/world/trial`` (String JSON, one message at each trial start).
-- Header stamps are the measured times plus the trial offset; log times are the same instants
-  (from 0, i.e. 1970-01-01 as absolute time: the bag is in measured time, not wall time).
-- motion: ``/kilobot_<id>/pose`` (PoseStamped, frame ``arena``) from x/y; the heading is
-  ``theta_rad`` when measured, else estimated from motion (direction of travel between the
-  neighbouring samples of the same trial; samples without movement keep the previous
-  heading). ``/kilobot_<id>/traits`` carries the heading bias estimated from motion
-  (:func:`kilobot_twin.analysis.heading_bias_from_track`, median over trials), marked as such.
-- light_sweep: ``/kilobot_<id>/light`` (Illuminance, the raw reading) and the projected
-  stimulus on ``/kilobot_<id>/stimulus`` (std_msgs/Float64; import only, no live equivalent).
-- blink: ``/kilobot_<id>/led`` (ColorRGBA red / blue).
-- ``/clock`` at every sample time present in the data.
-
-Tracking gaps (missing rows) stay gaps: nothing is written for them. Bad input is reported by
-:func:`kilobot_twin.measured.load` (file, line, column).
+The layout (trials one after another in time, ``kilobot_twin.import`` metadata, which topic each
+kind of dataset fills, gaps kept) is described in the README ("Replay, view, import"). Header
+stamps and log times are the measured times plus the trial offset (from 0: measured time, not
+wall time). Bad input is reported by :func:`kilobot_twin.recording.measured.load`.
 """
 
 from __future__ import annotations
@@ -29,9 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .errors import ConfigError
+from .. import __version__
+from ..errors import ConfigError
+from .bag import BagReader
+from .cdr import float64_cdr
 from .measured import Dataset, load
+from .twin_bag import TwinBagWriter
 
 NS = 1_000_000_000
 
@@ -65,9 +52,7 @@ def trial_period_s(ds: Dataset) -> float:
 
 def import_dataset(dataset: str | Path, out: str | Path) -> dict:
     """Write the bag ``out`` from the dataset folder; returns a summary (messages per topic, trials)."""
-    from .analysis import heading_bias_from_track
-    from .recording.bag import summary_counts
-    from .ros.robot_bag import TwinBagWriter
+    from ..analysis import heading_bias_from_track
 
     out = Path(out)
     if (out / "metadata.yaml").exists() or any(out.glob("*.mcap")):
@@ -102,9 +87,6 @@ def import_dataset(dataset: str | Path, out: str | Path) -> dict:
 
     w = TwinBagWriter(out)
     try:
-        from rclpy.serialization import serialize_message
-        from std_msgs.msg import Float64
-
         meta_doc = {"format": "kilobot-twin/import-v1", "version": __version__, "source": str(Path(dataset).resolve()),
                     "kind": kind, "robots": ds.robots, "trials": trials, "trial_period_s": trial_period_s(ds),
                     "dt_s": ds.dt_s, "duration_s": ds.duration_s,
@@ -138,9 +120,9 @@ def import_dataset(dataset: str | Path, out: str | Path) -> dict:
             elif p[0] == "light":
                 w.robot_sample(robot, stamp, stamp, reading=p[1])
                 w.bag.write(w.channel(f"/kilobot_{robot}/stimulus", "std_msgs/msg/Float64"),
-                            serialize_message(Float64(data=p[2])), stamp)
+                            float64_cdr(p[2]), stamp)
             else:
                 w.robot_sample(robot, stamp, stamp, led=p[1])
     finally:
         w.close({"kilobot_twin_version": __version__, "source": "measured", "kind": kind})
-    return {"path": out, "counts": summary_counts(out), "trials": trials, "kind": kind, "robots": len(ds.robots)}
+    return {"path": out, "counts": BagReader(out).counts(), "trials": trials, "kind": kind, "robots": len(ds.robots)}
