@@ -25,6 +25,10 @@ COMPONENTS = {
 }
 
 
+#: Frame rate (Hz) that motion tracks are thinned to, at most (see :func:`measured_summaries`).
+MOTION_RATE_HZ = 10.0
+
+
 @dataclass
 class Conditions:
     kind: str
@@ -53,10 +57,15 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         x, y, _ = summaries.reject_glitches(x, y, noise)
         noise = summaries.tracking_noise(x, y)
         x, y = summaries.mask_before_onset(x, y, noise)
+        # The summaries look at displacements over seconds: frames beyond ~10 Hz add little to
+        # them but cost the simulations in proportion. Cleaned tracks are thinned to every
+        # q-th frame (the twin is then simulated at that rate, observed at the same frames).
+        q = max(1, int(round(1.0 / (MOTION_RATE_HZ * ds.dt_s))))
+        x, y, dt_s = x[..., ::q], y[..., ::q], ds.dt_s * q
         observed = np.isfinite(x)
-        s = summaries.motion(x, y, ds.dt_s)
-        start = _start_poses(x, y, ds.dt_s)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, ds.dt_s, observed, start, noise)
+        s = summaries.motion(x, y, dt_s)
+        start = _start_poses(x, y, dt_s)
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed, start, noise)
     elif kind == "light_sweep":
         _, st = ds.grid("stimulus")
         _, rd = ds.grid("reading")

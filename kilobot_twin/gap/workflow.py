@@ -49,7 +49,8 @@ class GapSettings:
     seed: int = 0
     alpha: float = 0.01
     m_null: int = 120
-    m_ref: int = 20
+    m_ref: int = 20  # replicates per reference simulation of a fit on all trials
+    m_fold: int = 10  # ... of a fit on the training trials of one fold (held-out scoring)
     m_score: int = 30
     boot: int = 500
     max_steps: int = 4
@@ -200,24 +201,25 @@ class _Fitter:
         meas = self.meas_on(np.asarray(trials))
         depth = len(names)
         model = self.start
+        all_trials = tuple(range(self.cond.trials))
+        M = self.gs.m_ref if key[1] == all_trials else self.gs.m_fold
         if self.fit_base:
             if key[1] not in self.base_cache:
-                ref = simulate(self.cond, model, self.gs.m_ref, child_seed(self.gs.seed, "base_ref"), trials)
+                ref = simulate(self.cond, model, M, child_seed(self.gs.seed, "base_ref"), trials)
 
                 calls = itertools.count(1)
 
                 def resim_base(m):
-                    return simulate(self.cond, m, self.gs.m_ref, child_seed(self.gs.seed, "base_probe", next(calls)), trials)
+                    return simulate(self.cond, m, M, child_seed(self.gs.seed, "base_probe", next(calls)), trials)
 
-                all_trials = tuple(range(self.cond.trials))
                 noise = None if key[1] == all_trials else self.fit((), all_trials)
                 self.base_cache[key[1]] = E.fit_base(model, meas, ref, resim_base, noise)
             model = self.base_cache[key[1]]
         for j, name in enumerate(names):
-            ref = simulate(self.cond, model, self.gs.m_ref, child_seed(self.gs.seed, "effect_ref", depth, j), trials)
+            ref = simulate(self.cond, model, M, child_seed(self.gs.seed, "effect_ref", depth, j), trials)
 
             def resim(m, _j=j):
-                return simulate(self.cond, m, self.gs.m_ref, child_seed(self.gs.seed, "effect_resim", depth, _j), trials)
+                return simulate(self.cond, m, M, child_seed(self.gs.seed, "effect_resim", depth, _j), trials)
 
             model = self.gs.library[name].fit(model, meas, ref, resim)
             model.named = list(names[: j + 1])
