@@ -1,30 +1,73 @@
-"""Evaluate the gap workflow on synthetic datasets with known hidden effects.
+"""Evaluate the gap workflow on datasets with known hidden effects, and print the issue's figures.
 
-For every case (hidden effect set) and seed: synth a dataset, run the workflow, compare the
-named set with the truth. Prints the confusion matrix (true set x named set), the rates the
-issue targets, recovery correlations of per-robot parameters, gap shrinks and run times.
+For every case (hidden effect set) and seed: write a dataset, run the workflow, compare the named
+set with the truth. Two generators: ``synth`` (the twin itself, nuisances randomised with
+``--random-nuisance``) and ``indep`` (``benchmarks/indep_world.py``, another code base, every
+nuisance and the dataset's shape randomised per seed). Figures, each against its target:
 
-    python benchmarks/eval_gap.py [--seeds 10] [--workers 2] [--out out/eval_gap]
+- exact naming where every hidden effect is at least 1.5x the report's own minimum detectable
+  effect (MDE), and "nothing wrong named" below it; nothing named on null data; ``unexplained``
+  for the effect outside the library (a tilted floor);
+- recovered per-robot parameters: correlation and fitted slope (true -> fitted) per named effect;
+- gap shrink >= 80 % with its interval excluding 0, in named cases;
+- run time per dataset;
+- with ``--at-mde``: every single effect is set, per dataset, to exactly the MDE that the report
+  states for the same dataset without the effect; it should then be named in 80 % +- 10 %.
+
+    python benchmarks/eval_gap.py --generator indep --seeds 20 --out out/eval_gap/indep
+    python benchmarks/eval_gap.py --generator synth --random-nuisance --seeds 20 --out out/eval_gap/synth
+    python benchmarks/eval_gap.py --generator indep --at-mde --seeds 20 --out out/eval_gap/indep_mde
+    python benchmarks/eval_gap.py --summarise --out out/eval_gap/indep      # figures of a finished run
+
+``--scheduler local:N`` or ``tcp://HOST:PORT`` runs the datasets on a Dask cluster instead of the
+local process pool (``--workers``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from collections import Counter, defaultdict
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 CASES = [
     ("motion", ""), ("motion", "heading_bias"), ("motion", "speed_heterogeneity"), ("motion", "bias_drift"),
-    ("motion", "motion_noise"), ("motion", "heading_bias,speed_heterogeneity"), ("motion", "floor_tilt"),
-    ("light_sweep", ""), ("light_sweep", "sensor_gain"), ("blink", ""), ("blink", "clock_drift"),
+    ("motion", "motion_noise"), ("motion", "heading_bias,speed_heterogeneity"), ("motion", "heading_bias,bias_drift"),
+    ("motion", "floor_tilt"), ("light_sweep", ""), ("light_sweep", "sensor_gain"), ("blink", ""), ("blink", "clock_drift"),
 ]
+#: effect -> per-robot parameter of the truth and the fitted model
 RECOVER = {"heading_bias": "heading_bias", "speed_heterogeneity": "speed_factor", "bias_drift": "bias_drift",
-           "sensor_gain": "sensor_gain", "clock_drift": "clock_rate"}
+           "sensor_gain": "sensor_gain", "clock_drift": "clock_rate", "motion_noise": "sigma_omega"}
+OUTSIDE = {"floor_tilt"}  # hidden effects that are not in the library
+AXLE_M = 0.025
+SPEED_M_S = 0.06 * 48 / 255
+
+
+def realised_sizes(truth: dict) -> dict:
+    """Each library effect's size in this dataset, in the units of the report's minimum detectable
+    effect: the spread over the dataset's robots of what the effect makes them differ in."""
+    rob = truth["robots"]
+    ids = sorted(rob, key=int)
+
+    def col(k):
+        return np.array([rob[i][k] for i in ids], dtype=float)
+
+    if truth["kind"] == "motion":
+        v = SPEED_M_S * col("speed_factor")
+        sf = col("speed_factor")
+        return {"heading_bias": float(np.std(-col("heading_bias") * v / AXLE_M, ddof=1)),
+                "bias_drift": float(np.std(-col("bias_drift") * v / AXLE_M, ddof=1)),
+                "speed_heterogeneity": float(np.std(sf, ddof=1) / np.mean(sf)),
+                "motion_noise": float(np.std(col("sigma_omega") ** 2, ddof=1))}
+    if truth["kind"] == "light_sweep":
+        g = col("sensor_gain")
+        return {"sensor_gain": float(np.std(g, ddof=1) / np.mean(g))}
+    c = col("clock_rate")
+    return {"clock_drift": float(np.std(c, ddof=1) / np.mean(c))}
 
 
 def _indep():
@@ -36,20 +79,16 @@ def _indep():
     return mod
 
 
-def one(args):
-    kind, hidden, seed, out, gen = args["kind"], args["hidden"], args["seed"], args["out"], args["generator"]
+def _write(job: dict, ds: Path, effect_scale: float) -> dict:
+    kind, hidden, seed = job["kind"], job["hidden"], job["seed"]
+    if job["generator"] == "indep":
+        return _indep().generate(kind, hidden, ds, seed=seed, nuisance_scale=job["nuisance_scale"],
+                                 effect_scale=effect_scale, fixed_shape=job["fixed_shape"])
     from kilobot_twin.gap.synth import synth
-    from kilobot_twin.gap.workflow import GapSettings, run_gap
-    from kilobot_twin.core.traits import load_swarm
 
-    tag = f"x{args['nuisance_scale']}" if args["nuisance_scale"] is not None else (
-        "rand" if gen == "indep" or args["random_nuisance"] else "nominal")
-    name = f"{gen}_{tag}_{kind}_{hidden.replace(',', '+') or 'none'}_{seed}"
-    ds = Path(out) / "data" / name
-    if gen == "indep":
-        truth = _indep().generate(kind, hidden, ds, seed=seed, nuisance_scale=args["nuisance_scale"],
-                                  effect_scale=args["effect_scale"], fixed_shape=args["fixed_shape"])
-    elif args["random_nuisance"]:
+    if effect_scale != 1.0:
+        raise ValueError("--at-mde and --effect-scale need --generator indep")
+    if job["random_nuisance"]:
         from kilobot_twin.gap.observe import Observation
 
         # Every nuisance of the twin's world drawn log-uniformly over 0.25x-4x nominal, zero
@@ -58,32 +97,187 @@ def one(args):
         f = {k: float(np.exp(rng.uniform(np.log(0.25), np.log(4.0)))) * (k == "sigma_omega" or rng.random() >= 0.15)
              for k in ("sigma_omega", "sigma_v", "sensor_noise", "clock_trial_sd", "tracking")}
         obs = Observation(tracking_noise_m=0.002 * f.pop("tracking"))
-        truth = synth(kind, hidden, ds, seed=seed, obs=obs, nuisance=f)
-    else:
-        truth = synth(kind, hidden, ds, seed=seed)
+        return synth(kind, hidden, ds, seed=seed, obs=obs, nuisance=f)
+    return synth(kind, hidden, ds, seed=seed)
+
+
+def _gap(ds: Path, out: Path, seed: int):
+    from kilobot_twin.gap.workflow import GapSettings, run_gap
+
     t0 = time.perf_counter()
-    rep = run_gap([str(ds)], Path(out) / "gap" / name, gs=GapSettings(seed=seed), log=lambda *a: None)
-    secs = time.perf_counter() - t0
+    rep = run_gap([str(ds)], out, gs=GapSettings(seed=seed), log=lambda *a: None)
+    return rep, time.perf_counter() - t0
+
+
+def one(job: dict) -> dict:
+    """Write one dataset, run the workflow on it, compare with the truth."""
+    from kilobot_twin.core.traits import load_swarm
+
+    root = Path(job["out"])
+    name = job["name"]
+    ds = root / "data" / name
+    scale = job["effect_scale"]
+    mde_source = None
+    if job["at_mde"]:
+        # The report's MDE for this dataset without the effect (same seed: same robots, trials,
+        # nuisances), then the effect scaled so that its realised size equals that MDE.
+        effect = job["hidden"]
+        null_truth = _write(job | {"hidden": ""}, root / "data" / (name + "_null"), 1.0)
+        null_rep, _ = _gap(root / "data" / (name + "_null"), root / "gap" / (name + "_null"), job["seed"])
+        mde = (null_rep["datasets"][0]["minimum_detectable"] or {}).get(effect)
+        if mde is None:
+            return {**_ident(job), "skipped": f"no MDE for {effect}"}
+        mde_source = mde["size"]
+        scale = 1.0
+        for _ in range(3):  # effects are linear in the scale but for clipping and log-normal ones
+            size = realised_sizes(_write(job, ds, scale))[effect]
+            scale *= mde_source / max(size, 1e-300)
+        del null_truth
+    truth = _write(job, ds, scale)
+    rep, secs = _gap(ds, root / "gap" / name, job["seed"])
     fitted = load_swarm(rep["model"])
-    corr, slope = {}, {}
+    rec = {}
     for eff in rep["named_effects"]:
         if eff in RECOVER and eff in truth["hidden"]:
             key = RECOVER[eff]
             true = np.array([truth["robots"][str(i)][key] for i in fitted.ids])
-            corr[eff] = float(np.corrcoef(true, fitted.values[key])[0, 1])
-            slope[eff] = float(np.polyfit(true, fitted.values[key], 1)[0])
+            got = fitted.values[key]
+            slope, intercept = np.polyfit(true, got, 1)
+            rec[eff] = {"r": float(np.corrcoef(true, got)[0, 1]), "slope": float(slope),
+                        "mean_error_in_sd": float(np.mean(got - true) / np.std(true, ddof=1))}
     sec = rep["datasets"][0]
-    return {"kind": kind, "hidden": truth["hidden"], "named": rep["named_effects"], "unexplained": rep["unexplained"],
-            "signals": rep["unexplained_signals"], "seconds": secs, "corr": corr, "slope": slope,
+    return {**_ident(job), "hidden": truth["hidden"], "named": rep["named_effects"], "unexplained": rep["unexplained"],
+            "signals": rep["unexplained_signals"], "seconds": secs, "recovery": rec,
             "flagged": sorted({d["signal"] for d in rep["disagreements"] if d["round"] == 0}),
-            "mde": sec.get("minimum_detectable"), "generator": gen, "nuisance_scale": args["nuisance_scale"],
-            "shrink": rep["gap_shrink"], "gap_before": rep["gap_before"]["value"], "gap_after": rep["gap_after"]["value"]}
+            "mde": sec.get("minimum_detectable") or {}, "sizes": realised_sizes(truth), "effect_scale": scale,
+            "mde_without_effect": mde_source, "shrink": rep["gap_shrink"], "gap_before": rep["gap_before"]["value"],
+            "gap_after": rep["gap_after"]["value"], "nuisances": sec.get("nuisances"),
+            "shape": truth.get("shape") or {"robots": len(truth["robots"])}}
 
 
-def main():
-    ap = argparse.ArgumentParser()
+def _ident(job):
+    return {k: job[k] for k in ("name", "kind", "seed", "generator", "at_mde")} | {"case": job["hidden"] or "none"}
+
+
+def _run(jobs, a, out: Path) -> list:
+    from tqdm import tqdm
+
+    rows = []
+
+    def keep(row):
+        rows.append(row)  # written as they come, so a cut-short run still has its rows
+        (out / "results.json").write_text(json.dumps(rows, indent=1))
+
+    bar = tqdm(total=len(jobs), desc="datasets", unit="dataset")
+    if a.scheduler:
+        from distributed import as_completed
+
+        from kilobot_twin.batch import cluster
+
+        client = cluster.client(a.scheduler)
+        for fut in as_completed(client.map(one, jobs, pure=False)):
+            keep(fut.result())
+            bar.update()
+    else:
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(a.workers) as pool:
+            for fut in as_completed([pool.submit(one, j) for j in jobs]):
+                keep(fut.result())
+                bar.update()
+    bar.close()
+    return rows
+
+
+def _rate(flags) -> str:
+    flags = list(flags)
+    return f"{np.mean(flags):4.0%} ({sum(flags)}/{len(flags)})" if flags else "   - (0)"
+
+
+def summarise(rows: list, workers_note: str) -> None:
+    rows = [r for r in rows if "skipped" not in r]
+    if not rows:
+        print("no datasets")
+        return
+    gen = sorted({r["generator"] for r in rows})
+    print(f"{len(rows)} datasets, generator {', '.join(gen)}\n")
+    if any(r["at_mde"] for r in rows):
+        print("effect at exactly the MDE stated for the same dataset without it (target: named 80 % +- 10 %):")
+        by = defaultdict(list)
+        for r in rows:
+            by[r["case"]].append(r)
+        for case, rs in by.items():
+            named = [case in r["named"] for r in rs]
+            flagged = [bool(r["flagged"]) for r in rs]
+            print(f"  {case:22s} named {_rate(named)}, flagged at round 0 {_rate(flagged)}, "
+                  f"MDE median {np.median([r['mde_without_effect'] for r in rs]):.3g}")
+    else:
+        _naming(rows)
+        _recovery(rows)
+        _shrink(rows)
+    secs = np.array([r["seconds"] for r in rows])
+    print(f"\nrun time of the workflow per dataset: median {np.median(secs):.1f} s, 90th percentile "
+          f"{np.percentile(secs, 90):.1f} s, max {secs.max():.1f} s (target <= 60 s; {workers_note})")
+
+
+def _naming(rows):
+    print("naming, per case (exact = the hidden set; 'above' = every hidden effect >= 1.5x the report's MDE):")
+    print(f"  {'hidden':36s} {'n':>3s}  {'above: exact':18s} {'below: none wrong':18s} {'unexplained':>14s}  named sets")
+    by = defaultdict(list)
+    for r in rows:
+        by[(r["kind"], r["case"])].append(r)
+    for (kind, case), rs in by.items():
+        lib = [h for h in rs[0]["hidden"] if h not in OUTSIDE]
+        above = [r for r in rs if lib and all(h in r["mde"] and r["sizes"][h] >= 1.5 * r["mde"][h]["size"] for h in lib)]
+        below = [r for r in rs if r not in above]
+        exact = [sorted(r["named"]) == sorted(lib) for r in above]
+        wrong_free = [set(r["named"]) <= set(lib) for r in below]
+        sets = Counter(",".join(r["named"]) or "none" for r in rs)
+        print(f"  {kind + ': ' + case:36s} {len(rs):3d}  {_rate(exact):18s} {_rate(wrong_free):18s} "
+              f"{_rate([r['unexplained'] for r in rs]):>14s}  " + "; ".join(f"{k} ({v})" for k, v in sets.most_common()))
+    null = [r for r in rows if not r["hidden"]]
+    outside = [r for r in rows if set(r["hidden"]) & OUTSIDE]
+    hid = [r for r in rows if r["hidden"] and not set(r["hidden"]) & OUTSIDE]
+    above = [r for r in hid if all(h in r["mde"] and r["sizes"][h] >= 1.5 * r["mde"][h]["size"] for h in r["hidden"])]
+    below = [r for r in hid if r not in above]
+    print(f"\n  targets: above MDE named exactly      {_rate(sorted(r['named']) == sorted(r['hidden']) for r in above)}  (>= 95 %)")
+    print(f"           below MDE nothing wrong named {_rate(set(r['named']) <= set(r['hidden']) for r in below)}  (>= 95 %)")
+    print(f"           null data: nothing named      {_rate(not r['named'] for r in null)}  (>= 95 %)")
+    print(f"           outside the library: unexplained and nothing named "
+          f"{_rate(r['unexplained'] and not r['named'] for r in outside)}  (>= 90 %)")
+
+
+def _recovery(rows):
+    print("\nrecovered per-robot parameters (named and hidden; target r >= 0.95 and slope within 10 % of 1):")
+    rec = defaultdict(list)
+    for r in rows:
+        for k, v in r["recovery"].items():
+            rec[k].append(v)
+    for k, vs in rec.items():
+        rr = np.array([v["r"] for v in vs])
+        sl = np.array([v["slope"] for v in vs])
+        me = np.array([v["mean_error_in_sd"] for v in vs])
+        print(f"  {k:22s} n {len(vs):3d}: r median {np.median(rr):.3f}, >= 0.95 {np.mean(rr >= 0.95):4.0%}; slope median "
+              f"{np.median(sl):.3f}, within 10 % {np.mean(np.abs(sl - 1) <= 0.1):4.0%}; mean error median "
+              f"{np.median(me):+.2f} sd of the truth")
+
+
+def _shrink(rows):
+    named = [r for r in rows if r["named"]]
+    ok = [r["shrink"]["value"] >= 0.8 and r["shrink"]["ci95"][0] > 0 for r in named]
+    print(f"\ngap shrink >= 80 % with its 95 % interval excluding 0, in named cases: {_rate(ok)} (target >= 95 %)")
+    by = defaultdict(list)
+    for r in named:
+        by[",".join(r["named"])].append(r["shrink"]["value"])
+    for k, v in by.items():
+        print(f"  named {k:36s} median shrink {np.median(v):.0%} (n {len(v)})")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--scheduler", default=None, help="local:N or tcp://HOST:PORT: run on a Dask cluster")
     ap.add_argument("--out", default="out/eval_gap")
     ap.add_argument("--cases", default="", help="only these cases, e.g. 'motion:bias_drift,light_sweep:none'")
     ap.add_argument("--first-seed", type=int, default=1000)
@@ -94,75 +288,53 @@ def main():
     ap.add_argument("--effect-scale", type=float, default=1.0, help="indep: effect sizes x this")
     ap.add_argument("--fixed-shape", action="store_true", help="indep: 12 robots x 4 trials at 10 Hz")
     ap.add_argument("--random-nuisance", action="store_true", help="synth: randomise the twin's nuisance levels")
+    ap.add_argument("--at-mde", action="store_true", help="single effects set to the MDE stated without them (indep)")
     ap.add_argument("--summarise", action="store_true", help="only print the figures of OUT/results.json")
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
+    out = Path(a.out)
+    note = f"{a.workers} datasets at once on this machine" if not a.scheduler else f"on {a.scheduler}"
+    if a.summarise:
+        summarise(json.loads((out / "results.json").read_text()), note)
+        return 0
+    if a.at_mde and a.generator != "indep":
+        print("error: --at-mde: needs --generator indep (its effect sizes scale)", file=sys.stderr)
+        return 2
     cases = CASES
+    if a.at_mde:
+        cases = [(k, h) for k, h in CASES if h and "," not in h and h not in OUTSIDE]
     if a.cases:
         want = {tuple(c.split(":", 1)) for c in a.cases.split(",")}
-        cases = [(k, h) for k, h in CASES if (k, h.replace(",", "+") or "none") in want]
+        cases = [(k, h) for k, h in cases if (k, h.replace(",", "+") or "none") in want]
         if not cases:
-            ap.error(f"--cases: none of {a.cases!r} is a case; use kind:effect[+effect] or kind:none")
-    jobs = [{"kind": k, "hidden": h, "seed": a.first_seed + s, "out": a.out, "generator": a.generator,
-             "nuisance_scale": a.nuisance_scale, "effect_scale": a.effect_scale, "fixed_shape": a.fixed_shape,
-             "random_nuisance": a.random_nuisance}
-            for k, h in cases for s in range(a.seeds)]
-    t0 = time.perf_counter()
-    from tqdm import tqdm
+            print(f"error: --cases: none of {a.cases!r} is a case; use kind:effect[+effect] or kind:none", file=sys.stderr)
+            return 2
+    if (out / "results.json").exists():
+        print(f"error: --out: {out} holds results already; give a new folder (or --summarise to read them)",
+              file=sys.stderr)
+        return 2
+    if a.scheduler:
+        from kilobot_twin.batch.cluster import parse_scheduler
+        from kilobot_twin.errors import ConfigError
 
-    Path(a.out).mkdir(parents=True, exist_ok=True)
-    rows = []
-    if a.summarise:
-        rows = json.loads((Path(a.out) / "results.json").read_text())
-    else:
-        with ProcessPoolExecutor(a.workers) as pool:
-            for row in tqdm(pool.map(one, jobs), total=len(jobs), desc="datasets"):
-                rows.append(row)  # written as they come, so a cut-short run still has its rows
-                (Path(a.out) / "results.json").write_text(json.dumps(rows, indent=1))
-    print(f"{len(rows)} datasets in {time.perf_counter() - t0:.0f} s ({a.workers} workers)\n")
-    by = defaultdict(list)
-    for r in rows:
-        by[(r["kind"], ",".join(r["hidden"]) or "none")].append(r)
-    print(f"{'true effect set':42s} {'exact':>6s} {'unexpl.':>7s}  named sets (count)")
-    for key, rs in by.items():
-        exact = np.mean([sorted(r["named"]) == sorted(r["hidden"]) for r in rs if "floor_tilt" not in r["hidden"]] or [np.nan])
-        unexpl = np.mean([r["unexplained"] for r in rs])
-        sets = Counter(",".join(r["named"]) or "none" for r in rs)
-        flags = Counter(f for r in rs for f in r["flagged"])
-        print(f"{key[0] + ': ' + key[1]:42s} {exact:6.0%} {unexpl:7.0%}  " + "; ".join(f"{k} ({v})" for k, v in sets.most_common())
-              + "   [round-0 flags: " + ", ".join(f"{k} {v}" for k, v in flags.most_common()) + "]")
-    print("\nrecovery correlation of per-robot parameters (named and hidden):")
-    cors = defaultdict(list)
-    for r in rows:
-        for k, v in r["corr"].items():
-            cors[k].append(v)
-    slopes = defaultdict(list)
-    for r in rows:
-        for k, v in r.get("slope", {}).items():
-            slopes[k].append(v)
-    for k, v in cors.items():
-        sl = np.array(slopes[k])
-        print(f"  {k:22s} median r {np.median(v):.3f}, min {np.min(v):.3f}, share >= 0.95: {np.mean(np.array(v) >= 0.95):.0%}; "
-              f"slope median {np.median(sl):.3f}, within 10 % of 1: {np.mean(np.abs(sl - 1) <= 0.1):.0%}")
-    print("\ngap shrink (datasets with a hidden library effect):")
-    for key, rs in by.items():
-        rs = [r for r in rs if r["hidden"] and "floor_tilt" not in r["hidden"]]
-        if not rs:
-            continue
-        sh = np.array([r["shrink"]["value"] for r in rs])
-        lo = np.array([r["shrink"]["ci95"][0] for r in rs])
-        print(f"  {key[0] + ': ' + key[1]:42s} median shrink {np.median(sh):.0%}, >= 80 %: {np.mean(sh >= 0.8):.0%}, "
-              f"CI excludes 0: {np.mean(lo > 0):.0%}")
-    print("\nminimum detectable effect stated by the reports (detection, 80 % power), median [min, max]:")
-    mdes = defaultdict(list)
-    for r in rows:
-        for k, v in (r.get("mde") or {}).items():
-            mdes[(k, v["unit"])].append(v["size"])
-    for (k, unit), v in mdes.items():
-        print(f"  {k:22s} {np.median(v):.3g} [{np.min(v):.3g}, {np.max(v):.3g}] ({unit})")
-    secs = np.array([r["seconds"] for r in rows])
-    print(f"\nrun time per dataset: median {np.median(secs):.1f} s, max {secs.max():.1f} s "
-          f"(with {a.workers} datasets at once on this machine)")
+        try:
+            parse_scheduler(a.scheduler)
+        except ConfigError as e:
+            print(f"error: --{e}", file=sys.stderr)
+            return 2
+    tag = "mde" if a.at_mde else (f"x{a.nuisance_scale}" if a.nuisance_scale is not None else
+                                  ("rand" if a.generator == "indep" or a.random_nuisance else "nominal"))
+    jobs = [{"kind": k, "hidden": h, "seed": a.first_seed + s, "out": str(out), "generator": a.generator,
+             "nuisance_scale": a.nuisance_scale, "effect_scale": a.effect_scale, "fixed_shape": a.fixed_shape,
+             "random_nuisance": a.random_nuisance, "at_mde": a.at_mde,
+             "name": f"{a.generator}_{tag}_{k}_{h.replace(',', '+') or 'none'}_{a.first_seed + s}"}
+            for k, h in cases for s in range(a.seeds)]
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    rows = _run(jobs, a, out)
+    print(f"{len(rows)} datasets in {time.perf_counter() - t0:.0f} s\n")
+    summarise(rows, note)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

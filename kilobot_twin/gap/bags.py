@@ -55,7 +55,7 @@ def dataset_from_bag(bag_dir: str | Path) -> measured.Dataset:
             stamp_ns, x, y, _qz, _qw = cdr.pose_stamped(data)
             series.setdefault(rt[0], []).append((stamp_ns, x, y))
         else:
-            led = cdr.led_from_rgba(*cdr.color_rgba(data))
+            led = cdr.led(data)
             if led <= 1:
                 series.setdefault(rt[0], []).append((log_ns, float(led), 0.0))
     tracks = {}

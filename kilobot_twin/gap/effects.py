@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.constants import WHEEL_SEPARATION_M
+from ..core.kinematics import heading_bias_from_turn_rate
 from ..core.traits import SwarmTraits
 from . import synth
 
@@ -44,11 +44,10 @@ def _nanmean(a, axis=None):
 
 def _bias(turn_rate, model: TwinModel):
     """Per-trial heading bias from turn rates: b = -omega L / v, v the model's nominal speed."""
-    v = synth.FORWARD_SPEED_M_S * model.swarm.speed_factor[None, :]
-    return -turn_rate * WHEEL_SEPARATION_M / v
+    return heading_bias_from_turn_rate(turn_rate, synth.FORWARD_SPEED_M_S * model.swarm.speed_factor[None, :])
 
 
-def _within_var(b):
+def within_var(b):
     """Pooled within-robot variance over trials (ddof per robot), b: (K, N)."""
     dev = b - _nanmean(b, axis=0)[None, :]
     n = np.isfinite(b).sum(0)
@@ -231,7 +230,7 @@ class HeadingBias(Effect):
 
     def fit(self, model, meas, ref, resim=None):
         b = _bias(meas["turn_rate"], model) - model.swarm.bias_drift[None, :] * _trial_index(meas)
-        spread = max(_within_var(b) - _est_var_bias(ref, model, resim), 0.0)
+        spread = max(within_var(b) - _est_var_bias(ref, model, resim), 0.0)
         n = len(model.swarm)
         return model.with_traits(heading_bias=_nanmean(b, axis=0), bias_trial_sd=np.full(n, np.sqrt(spread)))
 
@@ -311,7 +310,7 @@ class MotionNoise(Effect):
         m = model.with_traits(sigma_omega=np.sqrt(var_i))
         # The trial-to-trial bias spread keeps only what the new noise does not already explain.
         b = _bias(meas["turn_rate"], m)
-        spread = max(_within_var(b) - _est_var_bias(ref, m, resim), 0.0)
+        spread = max(within_var(b) - _est_var_bias(ref, m, resim), 0.0)
         return m.with_traits(bias_trial_sd=np.full(n, np.sqrt(spread)))
 
 
@@ -350,7 +349,7 @@ class ClockDrift(Effect):
     def fit(self, model, meas, ref, resim=None):
         c = model.swarm.clock_rate * _nanmean(meas["toggle_rate"], axis=0) / _nanmean(ref["toggle_rate"], axis=(0, 1))
         rel = meas["toggle_rate"] / _nanmean(meas["toggle_rate"], axis=0)[None, :]
-        spread = max(_within_var(rel) - _est_var_rel(ref, model, resim), 0.0)
+        spread = max(within_var(rel) - _est_var_rel(ref, model, resim), 0.0)
         return model.with_traits(clock_rate=c, clock_trial_sd=np.full(len(model.swarm), np.sqrt(spread)))
 
 

@@ -25,8 +25,8 @@ COMPONENTS = {
 }
 
 
-#: Frame rate (Hz) that motion tracks are thinned to, at most (see :func:`measured_summaries`).
-MOTION_RATE_HZ = 10.0
+#: Frame rate (Hz) that tracks are thinned to, about (see :func:`measured_summaries`).
+RATE_HZ = 10.0
 
 
 @dataclass
@@ -48,6 +48,12 @@ class Conditions:
 def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
     """Conditions and summaries (each (K, N)) of a measured dataset."""
     kind = ds.kind
+    # The summaries look at seconds (displacements, sweeps, toggle rates over minutes): frames
+    # beyond ~10 Hz add little to them but cost the simulations in proportion. Tracks are
+    # thinned to every q-th frame (after cleaning); the twin is simulated at that rate and
+    # observed at the same frames.
+    q = max(1, int(round(1.0 / (RATE_HZ * ds.dt_s))))
+    dt_s = ds.dt_s * q
     if kind == "motion":
         _, x = ds.grid("x_m")
         _, y = ds.grid("y_m")
@@ -57,26 +63,21 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         x, y, _ = summaries.reject_glitches(x, y, noise)
         noise = summaries.tracking_noise(x, y)
         x, y = summaries.mask_before_onset(x, y, noise)
-        # The summaries look at displacements over seconds: frames beyond ~10 Hz add little to
-        # them but cost the simulations in proportion. Cleaned tracks are thinned to every
-        # q-th frame (the twin is then simulated at that rate, observed at the same frames).
-        q = max(1, int(round(1.0 / (MOTION_RATE_HZ * ds.dt_s))))
-        x, y, dt_s = x[..., ::q], y[..., ::q], ds.dt_s * q
+        x, y = x[..., ::q], y[..., ::q]
         observed = np.isfinite(x)
         s = summaries.motion(x, y, dt_s)
         start = _start_poses(x, y, dt_s)
         cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed, start, noise)
     elif kind == "light_sweep":
-        _, st = ds.grid("stimulus")
-        _, rd = ds.grid("reading")
+        st, rd = ds.grid("stimulus")[1][..., ::q], ds.grid("reading")[1][..., ::q]
         observed = np.isfinite(rd)
         s = summaries.light_sweep(st, rd)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, ds.dt_s, observed)
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed)
     else:
-        _, led = ds.grid("led")
+        led = ds.grid("led")[1][..., ::q]
         observed = np.isfinite(led)
-        s = summaries.blink(led, ds.dt_s)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, ds.dt_s, observed)
+        s = summaries.blink(led, dt_s)
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed)
     return cond, s
 
 

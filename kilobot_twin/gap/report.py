@@ -7,7 +7,9 @@ from pathlib import Path
 import numpy as np
 
 
-def write_markdown(out: Path, report: dict, sections: list) -> Path:
+def write_markdown(out: Path, report: dict, residuals: list) -> Path:
+    """report.md and one figure per dataset; ``residuals[j]``: per-robot held-out residuals of the
+    base and the final model of dataset j (``before``, ``after``)."""
     from ..plots import pyplot, save
 
     plt = pyplot()
@@ -15,7 +17,7 @@ def write_markdown(out: Path, report: dict, sections: list) -> Path:
              f"Named effects (in the order added): **{', '.join(report['named_effects']) or 'none'}**; "
              f"unexplained: **{report['unexplained']}**"
              + (f" (signals: {', '.join(report['unexplained_signals'])})" if report["unexplained_signals"] else ""), ""]
-    for j, s in enumerate(sections):
+    for j, s in enumerate(report["datasets"]):
         lines += [f"## {s['dataset']} ({s['kind']}, {len(s['robots'])} robots x {s['trials']} trials)", "",
                   f"- gap before: {s['gap_before']['value']:.2f} (95 % CI {s['gap_before']['ci95'][0]:.2f} .. {s['gap_before']['ci95'][1]:.2f})",
                   f"- gap after: {s['gap_after']['value']:.2f} (95 % CI {s['gap_after']['ci95'][0]:.2f} .. {s['gap_after']['ci95'][1]:.2f})",
@@ -40,7 +42,7 @@ def write_markdown(out: Path, report: dict, sections: list) -> Path:
                 lines.append(f"- {eff}: {v['size']:.3g} ({v['unit']})")
         lines += ["", "Nuisances fitted by the base model: " + ", ".join(f"{k} {v:.3g}" for k, v in s.get("nuisances", {}).items()), ""]
         fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
-        res = s["_residuals"]
+        res = residuals[j]
         x = np.arange(len(s["robots"]))
         axes[0].bar(x - 0.2, res["before"], 0.4, label="base model")
         axes[0].bar(x + 0.2, res["after"], 0.4, label="updated model")

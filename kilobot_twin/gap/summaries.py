@@ -11,7 +11,6 @@ import math
 
 import numpy as np
 
-from ..core.constants import WHEEL_SEPARATION_M
 
 #: Lag over which headings and speeds are measured: long enough that tracking noise (mm)
 #: is small against the displacement (1.13 cm/s x 2 s), short enough to follow curvature.
@@ -249,11 +248,6 @@ def mask_before_onset(x, y, noise_m: float, move_m: float = 0.004):
     onset = np.argmax(started, axis=-1)[..., None]
     keep = (np.arange(x.shape[-1]) >= onset - 1) | ~has  # keep the sample just before the move
     return np.where(keep, x, np.nan), np.where(keep, y, np.nan)
-
-
-def bias_from_turn_rate(turn_rate, speed):
-    """Heading bias (+ = clockwise) from turn rate and speed: ``b = -omega L / v``."""
-    return -turn_rate * WHEEL_SEPARATION_M / speed
 
 
 def light_sweep(stimulus, reading, knee_counts: float = 900.0, min_stimulus: float = 0.02) -> dict:

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..core.kinematics import heading_bias_from_turn_rate
 from ..recording import measured
 from ..errors import ConfigError
 from . import effects as E
@@ -299,12 +300,6 @@ def _gap(meas, pred, yard, comps, robots=None) -> float:
     return float(np.mean([np.nanmean(np.stack(x)) - 1.0 for x in (track, own, level)]))
 
 
-def _excess_z2(meas, pred, yard, comps):
-    """Per-robot mean of the per-track z^2 - 1 (for plots of residuals per robot)."""
-    zs = [(meas[c] - pred[c]["mean"]) / yard[c]["sd"] for c in comps]
-    return np.nanmean(np.stack(zs) ** 2, axis=(0, 1)) - 1.0  # (N,)
-
-
 def _residuals(meas, base, final, comps):
     """Per-robot held-out residuals of each model, in units of the final model's spread (for plots)."""
     out = {}
@@ -463,13 +458,13 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         "nuisances": _nuisances(fitter.fit((), all_trials), cond) if fit_base else {},
         "minimum_detectable": mde,
         "steps": steps, "disagreements": disagreements, "seconds": time.perf_counter() - t0,
-        "_residuals": _residuals(meas, pred_cache[()], pred_cache[names], comps),
     }
-    return {"section": section, "model": final}
+    return {"section": section, "model": final, "residuals": _residuals(meas, pred_cache[()], pred_cache[names], comps)}
 
 
 #: effect -> (summary whose between-robot F statistic detects it, how its size is expressed)
 _MDE_OF = {"motion": {"heading_bias": ("turn_rate", "sd of the per-robot turn rate, rad/s"),
+                      "bias_drift": ("turn_rate", "sd of the per-robot change of turn rate per trial, rad/s"),
                       "speed_heterogeneity": ("speed", "relative sd of the per-robot speed factor"),
                       "motion_noise": ("diffusion", "sd of the per-robot heading diffusion, rad^2/s")},
            "light_sweep": {"sensor_gain": ("gain", "relative sd of the per-robot sensor gain")},
@@ -478,15 +473,19 @@ _MDE_OF = {"motion": {"heading_bias": ("turn_rate", "sd of the per-robot turn ra
 
 def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: float, power: float = 0.8) -> dict:
     """The smallest between-robot spread of each effect that the detection step flags with
-    ``power`` on this dataset (its robots, trials, noise), from the fitted base's simulations.
+    ``power`` on this dataset (its robots, trials, noise): the within-robot variance of each
+    summary from the data, the spread of the statistic from the fitted base's simulations (a
+    ratio of mean squares, its null law barely depends on the noise's scale).
 
     Between robots that differ by sd tau, a robot's mean over its K trials varies by an extra
     tau^2, so the F ratio of between- to within-robot mean squares grows by the factor
     1 + K tau^2 / s_w^2 (s_w^2: the within-robot variance of one trial's summary). Its logarithm
     is what :func:`detect` compares with the simulated null (mean m0, sd s0), flagging above
     m0 + z(alpha / n) s0; with the same spread under the effect, ``power`` is reached when
-    log(1 + K tau^2 / s_w^2) = (z(alpha / n) + z(1 - power)) s0. This covers detection only
-    (naming also needs the held-out score), so it is a lower bound on what gets named.
+    log(1 + K tau^2 / s_w^2) = (z(alpha / n) + z(1 - power)) s0. A drift (robots' summaries
+    changing by sd tau per trial) raises the trend statistic's ratio by 1 + S_kk tau^2 / s_w^2,
+    S_kk = sum over trials of (k - mean k)^2. This covers detection only (naming also needs the
+    held-out score), so it is a lower bound on what gets named.
     """
     from scipy.stats import norm
 
@@ -494,19 +493,34 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
     z = norm.isf(alpha / len(stats)) + norm.isf(1 - power)
     out = {}
     for effect, (comp, unit) in _MDE_OF.get(kind, {}).items():
-        f = np.asarray(stats[f"{comp}:between_robots"][0], dtype=float)
+        stat = f"{comp}:trial_trend" if effect == "bias_drift" else f"{comp}:between_robots"
+        if stat not in stats:  # fewer than 3 trials: no trend statistic
+            continue
+        f = np.asarray(stats[stat][0], dtype=float)
         s0 = np.nanstd(f[np.isfinite(f)], ddof=1)
-        x = null[comp]  # (M, K, N)
+        x = meas[comp]  # (K, N)
         with np.errstate(all="ignore"):
-            s_w2 = np.nanmean([E._within_var(r) for r in x])
-            k_eff = float(np.nanmean(np.isfinite(meas[comp]).sum(0)))
+            seen = np.isfinite(x)
+            if effect == "bias_drift":
+                k = np.arange(trials, dtype=float)[:, None]
+                kb = (np.where(seen, k, 0).sum(0)) / np.maximum(seen.sum(0), 1)
+                dk = np.where(seen, k - kb, 0.0)
+                k_eff = float(np.mean((dk**2).sum(0)))
+                # Within-robot variance about each robot's line (a drift, if any, is not noise).
+                dev = np.where(seen, x - np.nanmean(x, axis=0), 0.0)
+                slope = (dk * dev).sum(0) / np.maximum((dk**2).sum(0), 1e-12)
+                s_w2 = float(((dev - slope * dk) ** 2).sum() / max(int((seen.sum(0) - 2).clip(0).sum()), 1))
+            else:
+                k_eff = float(np.nanmean(seen.sum(0)))
+                # Within-robot variance of the data: a between-robot effect, if present, is not in it.
+                s_w2 = E.within_var(x)
             tau = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
             level = float(np.nanmean(x))
         size = tau if comp in ("turn_rate", "diffusion") else tau / abs(level)
         out[effect] = {"size": size, "unit": unit}
         if effect == "heading_bias":  # also in the twin's heading-bias units, b = -omega L / v
             v = float(np.nanmean(null["speed"]))
-            out[effect]["heading_bias_sd"] = tau * 0.025 / v
+            out[effect]["heading_bias_sd"] = float(abs(heading_bias_from_turn_rate(tau, v)))
     return out
 
 
@@ -549,7 +563,7 @@ def run_gap(data: list[str], out: str | Path, model_path: str | None = None, gs:
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    sections, models = [], []
+    sections, models, residuals = [], [], []
     for d in data:
         ds = _load_data(d)
         base = _load_base(model_path, ds.kind, ds.robots) if model_path else None
@@ -557,6 +571,7 @@ def run_gap(data: list[str], out: str | Path, model_path: str | None = None, gs:
             warnings.simplefilter("ignore", RuntimeWarning)  # robots missing from whole trials
             res = analyse(ds, gs, base, log)
         sections.append(res["section"])
+        residuals.append(res["residuals"])
         models.append(res["model"])
     robots: dict = {}
     for m in models:
@@ -582,12 +597,12 @@ def run_gap(data: list[str], out: str | Path, model_path: str | None = None, gs:
         "steps": [dict(st, dataset=s["dataset"]) for s in sections for st in s["steps"]],
         "disagreements": [dict(dg, dataset=s["dataset"]) for s in sections for dg in s["disagreements"]],
         "model": str(out / "model.yaml"),
-        "datasets": [{k: v for k, v in s.items() if not k.startswith("_")} for s in sections],
+        "datasets": sections,
     }
     (out / "report.json").write_text(json.dumps(report, indent=1))
     from .report import write_markdown
 
-    write_markdown(out, report, sections)
+    write_markdown(out, report, residuals)
     return report
 
 
