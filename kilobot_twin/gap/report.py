@@ -21,7 +21,9 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
         lines += [f"## {s['dataset']} ({s['kind']}, {len(s['robots'])} robots x {s['trials']} trials)", "",
                   f"- gap before: {s['gap_before']['value']:.2f} (95 % CI {s['gap_before']['ci95'][0]:.2f} .. {s['gap_before']['ci95'][1]:.2f})",
                   f"- gap after: {s['gap_after']['value']:.2f} (95 % CI {s['gap_after']['ci95'][0]:.2f} .. {s['gap_after']['ci95'][1]:.2f})",
-                  f"- shrink: {100 * s['gap_shrink']['value']:.0f} % (95 % CI {100 * s['gap_shrink']['ci95'][0]:.0f} .. {100 * s['gap_shrink']['ci95'][1]:.0f} %)",
+                  f"- shrink where the disagreement was ({', '.join(s['gap_shrink']['summaries']) or 'nothing flagged'}; "
+                  f"{s['gap_shrink']['before']:.2f} -> {s['gap_shrink']['after']:.2f}): {100 * s['gap_shrink']['value']:.0f} % "
+                  f"(95 % CI {100 * s['gap_shrink']['ci95'][0]:.0f} .. {100 * s['gap_shrink']['ci95'][1]:.0f} %)",
                   f"- metric: {s['gap_before']['metric']}; computed on held-out trials (leave-one-trial-out)", "",
                   "| round | signal | robots | trials | z | p |", "|---|---|---|---|---|---|"]
         for d in s["disagreements"]:
