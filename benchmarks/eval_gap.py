@@ -43,6 +43,11 @@ CASES = [
 RECOVER = {"heading_bias": "heading_bias", "speed_heterogeneity": "speed_factor", "bias_drift": "bias_drift",
            "sensor_gain": "sensor_gain", "clock_drift": "clock_rate", "motion_noise": "sigma_omega"}
 OUTSIDE = {"floor_tilt"}  # hidden effects that are not in the library
+#: The earlier gap issue's effect sizes, in the units of the reports' minimum detectable effects
+#: (turn-rate sd 0.008 rad/s, speed factors sd 0.12, clock rates sd 0.015, sensor gains
+#: exp(N(0, 0.25)): relative sd 0.25, bias drift 0.0045 rad/s per trial).
+EARLIER_SIZES = {"heading_bias": 0.008, "speed_heterogeneity": 0.12, "clock_drift": 0.015, "sensor_gain": 0.25,
+                 "bias_drift": 0.0045}
 AXLE_M = 0.025
 SPEED_M_S = 0.06 * 48 / 255
 
@@ -215,6 +220,7 @@ def summarise(rows: list, workers_note: str) -> None:
         _naming(rows)
         _recovery(rows)
         _shrink(rows)
+    _mde(rows)
     secs = np.array([r["seconds"] for r in rows])
     print(f"\nrun time of the workflow per dataset: median {np.median(secs):.1f} s, 90th percentile "
           f"{np.percentile(secs, 90):.1f} s, max {secs.max():.1f} s (target <= 60 s; {workers_note})")
@@ -245,6 +251,18 @@ def _naming(rows):
     print(f"           null data: nothing named      {_rate(not r['named'] for r in null)}  (>= 95 %)")
     print(f"           outside the library: unexplained and nothing named "
           f"{_rate(r['unexplained'] and not r['named'] for r in outside)}  (>= 90 %)")
+
+
+def _mde(rows):
+    print("\nminimum detectable effect stated by the reports (80 % power at detection), against the earlier issue's sizes:")
+    mdes = defaultdict(list)
+    for r in rows:
+        for k, v in r["mde"].items():
+            mdes[(k, v["unit"])].append(v["size"])
+    for (k, unit), v in mdes.items():
+        ref = EARLIER_SIZES.get(k)
+        below = f"; below {ref:g} in {np.mean(np.array(v) < ref):.0%}" if ref else ""
+        print(f"  {k:22s} median {np.median(v):.3g}, max {np.max(v):.3g} ({unit}){below}")
 
 
 def _recovery(rows):

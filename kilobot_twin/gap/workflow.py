@@ -392,10 +392,13 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
     steps, disagreements = [], []
     unexplained, unexplained_signals = False, []
     pred_cache = {(): _heldout(fitter, (), kind)}
+    nulls = {}  # (model names, round) -> a null simulated already
     candidates = [e for e in gs.library.values() if e.kind == kind]
     for round_ in range(gs.max_steps + 1):
         model = fitter.fit(names, all_trials)
-        null = simulate(cond, model, gs.m_null, child_seed(gs.seed, "null", round_))
+        null = nulls.pop((names, round_), None)
+        if null is None:
+            null = simulate(cond, model, gs.m_null, child_seed(gs.seed, "null", round_))
         found = detect(kind, meas, null, cond.trials, gs.alpha)
         if round_ == 0:
             mde = minimum_detectable(kind, meas, null, cond.trials, gs.alpha)
@@ -423,6 +426,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
             # A name must remove a disagreement, not only raise the likelihood elsewhere.
             cand_model = fitter.fit(names + (name,), all_trials)
             next_null = simulate(cond, cand_model, gs.m_null, child_seed(gs.seed, "null", round_ + 1))
+            nulls[(names + (name,), round_ + 1)] = next_null  # the next round's null, if it is named
             after = {f["signal"]: f for f in detect(kind, meas, next_null, cond.trials, gs.alpha)}
             return [f["signal"] for f in flagged if not after[f["signal"]]["flagged"]]
 
