@@ -266,18 +266,25 @@ def _mde(rows):
 
 
 def _recovery(rows):
-    print("\nrecovered per-robot parameters (named and hidden; target r >= 0.95 and slope within 10 % of 1):")
+    print("\nrecovered per-robot parameters (named and hidden; target r >= 0.95 and slope within 10 % of 1), by the "
+          "effect's size over the report's MDE:")
     rec = defaultdict(list)
     for r in rows:
         for k, v in r["recovery"].items():
-            rec[k].append(v)
+            ratio = r["sizes"][k] / r["mde"][k]["size"] if k in r["mde"] else np.inf
+            rec[k].append(v | {"ratio": ratio})
     for k, vs in rec.items():
-        rr = np.array([v["r"] for v in vs])
-        sl = np.array([v["slope"] for v in vs])
-        me = np.array([v["mean_error_in_sd"] for v in vs])
-        print(f"  {k:22s} n {len(vs):3d}: r median {np.median(rr):.3f}, >= 0.95 {np.mean(rr >= 0.95):4.0%}; slope median "
-              f"{np.median(sl):.3f}, within 10 % {np.mean(np.abs(sl - 1) <= 0.1):4.0%}; mean error median "
-              f"{np.median(me):+.2f} sd of the truth")
+        for lo, hi in ((0, np.inf), (1.5, 3), (3, np.inf)):
+            sel = [v for v in vs if lo <= v["ratio"] < hi]
+            if not sel:
+                continue
+            rr = np.array([v["r"] for v in sel])
+            sl = np.array([v["slope"] for v in sel])
+            me = np.array([v["mean_error_in_sd"] for v in sel])
+            span = "all sizes" if lo == 0 else f"{lo:g}-{hi:g}x MDE" if np.isfinite(hi) else f">= {lo:g}x MDE"
+            print(f"  {k:20s} {span:12s} n {len(sel):3d}: r median {np.median(rr):.3f}, >= 0.95 {np.mean(rr >= 0.95):4.0%}; "
+                  f"slope median {np.median(sl):.3f}, within 10 % {np.mean(np.abs(sl - 1) <= 0.1):4.0%}; "
+                  f"mean error median {np.median(me):+.2f} sd of the truth")
 
 
 def _shrink(rows):
