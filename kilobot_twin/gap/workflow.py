@@ -303,12 +303,17 @@ def _gap(meas, pred, yard, comps, robots=None, parts=("track", "own", "level")) 
     for c in comps:
         m, mu = meas[c], pred[c]["mean"]
         sd, sd_own = yard[c]["sd"], pred[c]["sd"]
+        extra = 0.0
         if robots is not None:
+            # A resampled mean over robots varies by the robots' spread / n more than the mean
+            # does: that much is taken off the level part, so the bootstrap is centred on it.
+            with np.errstate(all="ignore"):
+                extra = np.nanvar(m - mu, axis=1) / yard[c]["sd_level"] ** 2
             m, mu, sd, sd_own = m[:, robots], mu[:, robots], sd[:, robots], sd_own[:, robots]
         track.append(((m - mu) / sd) ** 2)
         own.append(((m - mu) / sd_own) ** 2)
         n = np.isfinite(m).sum(axis=1)
-        level.append(((np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (yard[c]["sd_level"] / np.sqrt(n))) ** 2)
+        level.append(((np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (yard[c]["sd_level"] / np.sqrt(n))) ** 2 - extra)
     have = {"track": track, "own": own, "level": level}
     return float(np.mean([np.nanmean(np.stack(have[p])) - 1.0 for p in parts]))
 

@@ -57,3 +57,18 @@ def test_line_per_robot_is_calibrated_on_held_out_end_trials(tmp_path):
     ends, every = np.concatenate(ends), np.concatenate(every)
     assert abs(np.nanmean(ends) - 1) < 4 * np.sqrt(2 / np.isfinite(ends).sum())
     assert abs(np.nanmean(every) - 1) < 4 * np.sqrt(2 / np.isfinite(every).sum())
+
+
+def test_bootstrap_of_the_level_part_is_centred_on_the_estimate():
+    """Resampling robots adds the variance of a mean over robots to a squared mean: E*[(mean*)^2]
+    = mean^2 + s^2 / n exactly (s^2 the robots' variance, ddof 0). The gap takes that off, so the
+    bootstrap average of its level part equals the estimate to Monte Carlo error."""
+    from kilobot_twin.gap.workflow import _gap  # the statistic itself is under test
+
+    rng = np.random.default_rng(5)
+    K, N, B = 4, 30, 4000
+    meas = {"turn_rate": 0.3 + rng.standard_normal((K, N))}
+    pred = {"turn_rate": {"mean": np.zeros((K, N)), "sd": np.ones((K, N)), "sd_level": np.ones(K)}}
+    point = _gap(meas, pred, pred, ["turn_rate"], parts=("level",))
+    boot = np.array([_gap(meas, pred, pred, ["turn_rate"], rng.integers(0, N, N), ("level",)) for _ in range(B)])
+    assert abs(boot.mean() - point) < 4 * boot.std(ddof=1) / np.sqrt(B)
