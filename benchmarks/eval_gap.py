@@ -352,7 +352,7 @@ def main(argv=None):
              "nuisance_scale": a.nuisance_scale, "effect_scale": a.effect_scale, "fixed_shape": a.fixed_shape,
              "random_nuisance": a.random_nuisance, "at_mde": a.at_mde,
              "name": f"{a.generator}_{tag}_{k}_{h.replace(',', '+') or 'none'}_{a.first_seed + s}"}
-            for k, h in cases for s in range(a.seeds)]
+            for s in range(a.seeds) for k, h in cases]  # seed-major: a run cut short has every case
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     rows = _run(jobs, a, out)
