@@ -48,17 +48,27 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
         x = np.arange(len(s["robots"]))
         axes[0].bar(x - 0.2, res["before"], 0.4, label="base model")
         axes[0].bar(x + 0.2, res["after"], 0.4, label="updated model")
-        axes[0].set_xticks(x, s["robots"])
+        step = max(1, int(np.ceil(len(x) / 20)))  # at most ~20 labels
+        axes[0].set_xticks(x[::step], [str(r) for r in s["robots"]][::step])
         axes[0].set_xlabel("robot")
         axes[0].set_ylabel("mean z^2 of held-out summaries")
         axes[0].set_title("per-robot residuals")
         axes[0].legend()
-        for k, (key, col) in enumerate((("gap_before", "tab:red"), ("gap_after", "tab:green"))):
-            v, (lo, hi) = s[key]["value"], s[key]["ci95"]
-            axes[1].bar(k, v, color=col, yerr=[[max(v - lo, 0)], [max(hi - v, 0)]], capsize=6)
-        axes[1].set_xticks([0, 1], ["before", "after"])
+        sh = s["gap_shrink"]
+        groups = [("all summaries", (s["gap_before"]["value"], s["gap_before"]["ci95"]),
+                   (s["gap_after"]["value"], s["gap_after"]["ci95"]))]
+        if sh["summaries"]:
+            groups.append((f"where flagged ({', '.join(sh['summaries'])})", (sh["before"], sh["before_ci95"]),
+                           (sh["after"], sh["after_ci95"])))
+        for g, (_, before, after) in enumerate(groups):
+            for k, ((v, (lo, hi)), col, lab) in enumerate(((before, "tab:red", "base model"), (after, "tab:green", "updated model"))):
+                axes[1].bar(g + (k - 0.5) * 0.38, v, 0.38, color=col, yerr=[[max(v - lo, 0)], [max(hi - v, 0)]], capsize=5,
+                            label=lab if g == 0 else None)
+        axes[1].set_xticks(range(len(groups)), [g[0] for g in groups], fontsize=8)
+        axes[1].axhline(0, color="k", lw=0.5)
         axes[1].set_ylabel("gap (excess mean z^2, 0 = model noise)")
-        axes[1].set_title("gap with 95 % interval")
+        axes[1].set_title(f"held-out gap, 95 % intervals; shrink {100 * sh['value']:.0f} %")
+        axes[1].legend(fontsize=7)
         names = sorted({n for st in s["steps"] for n in st["scores"]})  # one axis for every step
         width = 0.8 / max(len(s["steps"]), 1)
         for i, st in enumerate(s["steps"]):

@@ -477,9 +477,12 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         with np.errstate(all="ignore"):
             shrink = 1 - fbb[:, 1] / fbb[:, 0]
         shrink_doc = {"value": float(1 - fa / fb) if fb > 0 else 0.0, "ci95": [float(x) for x in np.nanpercentile(shrink, [2.5, 97.5])],
-                      "summaries": where, "before": fb, "after": fa}
+                      "summaries": where, "before": fb, "after": fa,
+                      "before_ci95": [float(x) for x in np.percentile(fbb[:, 0], [2.5, 97.5])],
+                      "after_ci95": [float(x) for x in np.percentile(fbb[:, 1], [2.5, 97.5])]}
     else:
-        shrink_doc = {"value": 0.0, "ci95": [0.0, 0.0], "summaries": [], "before": 0.0, "after": 0.0}
+        shrink_doc = {"value": 0.0, "ci95": [0.0, 0.0], "summaries": [], "before": 0.0, "after": 0.0,
+                      "before_ci95": [0.0, 0.0], "after_ci95": [0.0, 0.0]}
     for j, st in enumerate(steps):
         st["gap_after"] = _gap(meas, pred_cache[names[: j + 1]], pred_final, comps)
     metric = ("held-out prediction error (leave-one-trial-out) of the summaries (" + ", ".join(comps)
