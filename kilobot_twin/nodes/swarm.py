@@ -38,7 +38,7 @@ from ..core.traits import TRAIT_NAMES
 from ..errors import ConfigError
 from ..recording import topics
 from ..ros import convert, params, qos
-from ..ros.executors import make_executor, run_node, spin
+from ..ros.executors import make_executor, release, run_node, spin
 from ..ros.model import SwarmModel
 from ..ros.stepping import StepRule
 from ..core.scenarios import (clock_period_from_document, load_swarm_traits, parse_world_document,
@@ -232,9 +232,12 @@ def _run(node: SwarmNode) -> None:
     """Wait for the world's scenario, then create the robots in the same executor and spin."""
     executor = make_executor()
     executor.add_node(node)
-    spin(executor, until=node.world_ready)
-    node.create_robots(executor)
-    spin(executor)
+    try:
+        spin(executor, until=node.world_ready)
+        node.create_robots(executor)
+        spin(executor)
+    finally:
+        release(executor, node, *node.robots)  # before the nodes are destroyed (see release)
 
 
 def main(args=None):

@@ -79,7 +79,26 @@ def spin_node(node, until=None) -> None:
     """Spin one node in its own executor until ``until`` is done or the context shuts down."""
     executor = make_executor()
     executor.add_node(node)
-    spin(executor, until=until)
+    try:
+        spin(executor, until=until)
+    finally:
+        # Let go of the node before anyone destroys it: rclpy's destroy_node waits until no
+        # executor uses the node's handles, and an executor dropped while still holding them
+        # once kept a world process in destroy_node for a minute after Ctrl-C.
+        release(executor, node)
+
+
+def release(executor, *nodes) -> None:
+    """Remove ``nodes`` from ``executor`` and shut the executor down (errors only logged: this runs
+    on the way out)."""
+    import traceback
+
+    try:
+        for node in nodes:
+            executor.remove_node(node)
+        executor.shutdown(timeout_sec=5.0)
+    except Exception:  # noqa: BLE001 - cleanup must go on
+        traceback.print_exc()
 
 
 def run_node(prog: str, make_node, run=spin_node, on_exit=None, args=None) -> None:
