@@ -127,7 +127,7 @@ def one(job: dict) -> dict:
         # The report's MDE for this dataset without the effect (same seed: same robots, trials,
         # nuisances), then the effect scaled so that its realised size equals that MDE.
         effect = job["hidden"]
-        null_truth = _write(job | {"hidden": ""}, root / "data" / (name + "_null"), 1.0)
+        _write(job | {"hidden": ""}, root / "data" / (name + "_null"), 1.0)
         null_rep, _ = _gap(root / "data" / (name + "_null"), root / "gap" / (name + "_null"), job["seed"])
         mde = (null_rep["datasets"][0]["minimum_detectable"] or {}).get(effect)
         if mde is None:
@@ -137,7 +137,6 @@ def one(job: dict) -> dict:
         for _ in range(3):  # effects are linear in the scale but for clipping and log-normal ones
             size = realised_sizes(_write(job, ds, scale))[effect]
             scale *= mde_source / max(size, 1e-300)
-        del null_truth
     truth = _write(job, ds, scale)
     rep, secs = _gap(ds, root / "gap" / name, job["seed"])
     fitted = load_swarm(rep["model"])

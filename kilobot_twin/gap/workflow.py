@@ -243,8 +243,11 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             for c in comps}
     sim = fitter.gs.library[names[-1]].simulate if names else functools.partial(simulate)
 
+    def train_of(k):
+        return [t for t in range(K) if t != k]
+
     def fold(k):
-        model = fitter.fit(names, [t for t in range(K) if t != k])
+        model = fitter.fit(names, train_of(k))
         return sim(fitter.cond, model, fitter.gs.m_score, child_seed(fitter.gs.seed, "heldout", k), [k])
 
     # Folds are independent and their simulations release the GIL: threads. The all-trials base
@@ -254,7 +257,7 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
     with ThreadPoolExecutor(max(1, fitter.gs.threads)) as pool:
         folds = list(pool.map(fold, range(K)))
     for k, sims in enumerate(folds):
-        train = [t for t in range(K) if t != k]
+        train = train_of(k)
         for c in comps:
             x = sims[c][:, 0, :]  # (M, N)
             pred[c]["mean"][k] = np.nanmean(x, axis=0)
