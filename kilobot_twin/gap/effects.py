@@ -31,10 +31,23 @@ class TwinModel:
     named: list = field(default_factory=list)
     #: relative trial-to-trial jitter of every robot's speed (a nuisance the core does not carry)
     speed_trial_sd: float = 0.0
+    #: summary -> (N,) pooling weights of the per-robot estimates that predict it (see
+    #: :func:`partial_pool`); a summary predicted by a line per robot also has ``slope_pooling``
+    pooling: dict = field(default_factory=dict)
+    slope_pooling: dict = field(default_factory=dict)
 
     def with_traits(self, speed_trial_sd: float | None = None, **arrays) -> "TwinModel":
         sts = self.speed_trial_sd if speed_trial_sd is None else float(speed_trial_sd)
-        return TwinModel(self.kind, self.swarm.with_values(**arrays), list(self.named), sts)
+        return TwinModel(self.kind, self.swarm.with_values(**arrays), list(self.named), sts, dict(self.pooling),
+                         dict(self.slope_pooling))
+
+    def pooled(self, summary: str, w, w_slope=None) -> "TwinModel":
+        """The same model, noting how much its per-robot estimates for ``summary`` were pooled."""
+        m = self.with_traits()
+        m.pooling[summary] = np.asarray(w, dtype=float)
+        if w_slope is not None:
+            m.slope_pooling[summary] = np.asarray(w_slope, dtype=float)
+        return m
 
 
 def _nanmean(a, axis=None):
@@ -52,6 +65,39 @@ def within_var(b):
     dev = b - _nanmean(b, axis=0)[None, :]
     n = np.isfinite(b).sum(0)
     return float(np.nansum(dev**2) / max(int(np.sum(n - 1)), 1))
+
+
+def partial_pool(x, s2=None):
+    """Each robot's mean over its trials, partially pooled towards the population's (the robots
+    are draws from a population, as in the paper: empirical Bayes, the best linear unbiased
+    predictor of a random effect). ``x``: (..., K', N). Returns the pooled means and the weights
+    w, both (..., N).
+
+    A robot's mean over n_i trials is its own level plus noise of variance s^2 / n_i (s^2: the
+    pooled within-robot variance of one trial's summary, or ``s2``); robots' levels spread by
+    tau^2 = (variance of the robots' means) - (mean of s^2 / n_i), floored at 0 (method of
+    moments). The pooled mean is mu + w_i (mean_i - mu), w_i = tau^2 / (tau^2 + s^2 / n_i):
+    about 1 when robots differ by much more than one robot's estimate is uncertain, 0 when the
+    data shows no difference at all, so a held-out trial is not predicted from noise. Its error
+    is w_i s^2 / n_i, which is what :func:`leverage` adds to the predictive variance.
+    """
+    x = np.asarray(x, dtype=float)
+    with np.errstate(all="ignore"):
+        n = np.isfinite(x).sum(-2)
+        m = np.nanmean(x, axis=-2)
+        if s2 is None:
+            dev = x - m[..., None, :]
+            s2 = np.nansum(dev**2, axis=(-2, -1)) / np.maximum((n - 1).clip(0).sum(-1), 1)
+    s2 = np.asarray(s2, dtype=float)[..., None]
+    ok = n > 0
+    robots = ok.sum(-1, keepdims=True)
+    se2 = s2 / np.maximum(n, 1)
+    mu = np.where(ok, m, 0.0).sum(-1, keepdims=True) / np.maximum(robots, 1)
+    spread = np.where(ok, (m - mu) ** 2, 0.0).sum(-1, keepdims=True) / np.maximum(robots - 1, 1)
+    tau2 = np.maximum(spread - np.where(ok, se2, 0.0).sum(-1, keepdims=True) / np.maximum(robots, 1), 0.0)
+    w = np.where(ok, tau2 / np.maximum(tau2 + se2, 1e-300), 0.0)
+    w = np.where(robots >= 2, w, 1.0)  # one robot: nothing to pool with
+    return np.where(ok, mu + w * (m - mu), mu), w
 
 
 def _est_var_bias(ref, model, resim=None):
@@ -232,7 +278,8 @@ class HeadingBias(Effect):
         b = _bias(meas["turn_rate"], model) - model.swarm.bias_drift[None, :] * _trial_index(meas)
         spread = max(within_var(b) - _est_var_bias(ref, model, resim), 0.0)
         n = len(model.swarm)
-        return model.with_traits(heading_bias=_nanmean(b, axis=0), bias_trial_sd=np.full(n, np.sqrt(spread)))
+        bias, w = partial_pool(b)
+        return model.with_traits(heading_bias=bias, bias_trial_sd=np.full(n, np.sqrt(spread))).pooled("turn_rate", w)
 
 
 class BiasDrift(Effect):
@@ -246,19 +293,29 @@ class BiasDrift(Effect):
         b = _bias(meas["turn_rate"], model)  # (K', N)
         k = _trial_index(meas)[:, 0]
         n = b.shape[1]
-        a, d = np.zeros(n), np.zeros(n)
+        d, kbar, sxx = np.zeros(n), np.zeros(n), np.zeros(n)
         resid = []
         for i in range(n):
             ok = np.isfinite(b[:, i])
+            kbar[i] = k[ok].mean() if ok.any() else 0.0
             if ok.sum() >= 2 and np.ptp(k[ok]) > 0:
-                d[i], a[i] = np.polyfit(k[ok], b[ok, i], 1)
-                resid.append(b[ok, i] - (a[i] + d[i] * k[ok]))
-            else:
-                a[i] = np.nanmean(b[:, i])
+                d[i] = np.polyfit(k[ok], b[ok, i], 1)[0]
+                sxx[i] = float(((k[ok] - kbar[i]) ** 2).sum())
+                resid.append(b[ok, i] - np.nanmean(b[ok, i]) - d[i] * (k[ok] - kbar[i]))
         dof = sum(len(r) - 2 for r in resid)
         var = sum(float((r**2).sum()) for r in resid) / max(dof, 1)
         spread = max(var - _est_var_bias(ref, model, resim), 0.0)
-        return model.with_traits(heading_bias=a, bias_drift=d, bias_trial_sd=np.full(n, np.sqrt(spread)))
+        # Levels (at each robot's mean trial) and slopes pooled towards the population's, each
+        # with its own sampling variance: var / n_i and var / S_xx,i (see partial_pool).
+        level, w = partial_pool(b, s2=var)
+        has = sxx > 0
+        se2 = np.where(has, var / np.where(has, sxx, 1.0), np.inf)
+        d_mu = float(np.mean(d[has])) if has.any() else 0.0
+        tau2 = max(float(np.var(d[has], ddof=1) - np.mean(se2[has])), 0.0) if has.sum() > 1 else 0.0
+        w_d = np.where(has, tau2 / np.maximum(tau2 + np.where(has, se2, 1.0), 1e-300), 0.0)
+        d = d_mu + w_d * (d - d_mu)
+        return model.with_traits(heading_bias=level - d * kbar, bias_drift=d,
+                                 bias_trial_sd=np.full(n, np.sqrt(spread))).pooled("turn_rate", w, w_d)
 
 
 class SpeedHeterogeneity(Effect):
@@ -268,8 +325,9 @@ class SpeedHeterogeneity(Effect):
     predicts = {"speed": "mean"}
 
     def fit(self, model, meas, ref, resim=None):
-        ratio = _nanmean(meas["speed"], axis=0) / _nanmean(ref["speed"], axis=(0, 1))
-        return model.with_traits(speed_factor=model.swarm.speed_factor * ratio)
+        speed, w = partial_pool(meas["speed"])
+        ratio = speed / _nanmean(ref["speed"], axis=(0, 1))
+        return model.with_traits(speed_factor=model.swarm.speed_factor * ratio).pooled("speed", w)
 
 
 def _noise_stats(s):
@@ -305,9 +363,9 @@ class MotionNoise(Effect):
             return model
         c = np.nanmean(resim(model.with_traits(sigma_omega=np.zeros(n)))["diffusion"])
         slope = (np.nanmean(ref["diffusion"]) - c) / np.mean(s2)
-        d_i = _nanmean(meas["diffusion"], axis=0)
+        d_i, w = partial_pool(meas["diffusion"])
         var_i = np.where(np.isfinite(d_i), np.maximum(d_i - c, 0.0) / max(slope, 1e-30), np.mean(s2))
-        m = model.with_traits(sigma_omega=np.sqrt(var_i))
+        m = model.with_traits(sigma_omega=np.sqrt(var_i)).pooled("diffusion", w)
         # The trial-to-trial bias spread keeps only what the new noise does not already explain.
         b = _bias(meas["turn_rate"], m)
         spread = max(within_var(b) - _est_var_bias(ref, m, resim), 0.0)
@@ -326,12 +384,13 @@ class SensorGain(Effect):
         saturation knee makes the summarised gain a slightly non-linear function of the trait
         (fewer samples below the knee at high gain), which a single ratio to the population's
         simulation leaves as a bias that grows with the robot's distance from the population."""
-        g = model.swarm.sensor_gain * _nanmean(meas["gain"], axis=0) / _nanmean(ref["gain"], axis=(0, 1))
-        o = model.swarm.sensor_offset + _nanmean(meas["offset"], axis=0) - _nanmean(ref["offset"], axis=(0, 1))
-        m = model.with_traits(sensor_gain=g, sensor_offset=o)
+        mg, wg = partial_pool(meas["gain"])
+        mo, wo = partial_pool(meas["offset"])
+        g = model.swarm.sensor_gain * mg / _nanmean(ref["gain"], axis=(0, 1))
+        o = model.swarm.sensor_offset + mo - _nanmean(ref["offset"], axis=(0, 1))
+        m = model.with_traits(sensor_gain=g, sensor_offset=o).pooled("gain", wg).pooled("offset", wo)
         for _ in range(iterations if resim is not None else 0):
             sim = resim(m)
-            mg, mo = _nanmean(meas["gain"], axis=0), _nanmean(meas["offset"], axis=0)
             sg, so = _nanmean(sim["gain"], axis=(0, 1)), _nanmean(sim["offset"], axis=(0, 1))
             ok = np.isfinite(mg) & np.isfinite(sg)
             g = np.where(ok, m.swarm.sensor_gain * mg / np.where(ok, sg, 1.0), m.swarm.sensor_gain)
@@ -347,10 +406,11 @@ class ClockDrift(Effect):
     predicts = {"toggle_rate": "mean"}
 
     def fit(self, model, meas, ref, resim=None):
-        c = model.swarm.clock_rate * _nanmean(meas["toggle_rate"], axis=0) / _nanmean(ref["toggle_rate"], axis=(0, 1))
+        rate, w = partial_pool(meas["toggle_rate"])
+        c = model.swarm.clock_rate * rate / _nanmean(ref["toggle_rate"], axis=(0, 1))
         rel = meas["toggle_rate"] / _nanmean(meas["toggle_rate"], axis=0)[None, :]
         spread = max(within_var(rel) - _est_var_rel(ref, model, resim), 0.0)
-        return model.with_traits(clock_rate=c, clock_trial_sd=np.full(len(model.swarm), np.sqrt(spread)))
+        return model.with_traits(clock_rate=c, clock_trial_sd=np.full(len(model.swarm), np.sqrt(spread))).pooled("toggle_rate", w)
 
 
 #: What :func:`fit_base` estimates from the data, per kind (population levels only).
@@ -360,7 +420,7 @@ _RANK = {None: 0, "pop": 1, "mean": 2, "line": 3}
 
 
 def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit_base: bool = True,
-             library: dict | None = None):
+             library: dict | None = None, model: TwinModel | None = None):
     """Estimation part of the predictive variance of trial ``k``'s summary, as a multiple of
     one trial's simulated variance: ``(h_track, h_level)`` for one robot's summary and for the
     mean over robots.
@@ -372,7 +432,9 @@ def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit
     variance besides the trial's own), and the gap of a right model is not 0. ``h`` follows the most detailed predictor any
     fitted part uses for the summary: a population level (``1 / (N K')`` per robot, ``1 / K'``
     for the mean over robots), a robot's mean (``1 / K'``) or a robot's line (regression leverage
-    of trial ``k``); summaries nothing fits (a nominal level) have none.
+    of trial ``k``); summaries nothing fits (a nominal level) have none. Per-robot estimates
+    pooled towards the population (``model.pooling``, :func:`partial_pool`) err by w_i times a
+    free estimate's variance: ``h_track`` is then per robot.
     """
     how = BASE_PREDICTS.get(kind, {}).get(component) if fit_base else None
     for name in names:
@@ -386,10 +448,12 @@ def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit
     if how == "pop":
         return 1.0 / (n_robots * Kp), 1.0 / Kp
     sxx = float(((t - t.mean()) ** 2).sum())
+    # Per-robot estimates pooled towards the population (``model.pooling``) err by w times as much.
+    w = model.pooling.get(component, 1.0) if model is not None else 1.0
     if how == "mean" or sxx == 0:
-        return 1.0 / Kp, 1.0 / Kp
-    h = 1.0 / Kp + (k - t.mean()) ** 2 / sxx
-    return h, h
+        return w / Kp, 1.0 / Kp
+    w_d = model.slope_pooling.get(component, 1.0) if model is not None else 1.0
+    return w / Kp + w_d * (k - t.mean()) ** 2 / sxx, 1.0 / Kp + (k - t.mean()) ** 2 / sxx
 
 
 class Summaries(dict):

@@ -61,7 +61,7 @@ class GapSettings:
     library: dict = field(default_factory=lambda: dict(E.LIBRARY))
 
 
-_PURPOSE = {"base_ref": 1, "base_probe": 2, "effect_ref": 3, "effect_resim": 4, "heldout": 5, "null": 6, "bootstrap": 7}
+_PURPOSE = {"base_ref": 1, "base_probe": 2, "effect_ref": 3, "effect_resim": 4, "heldout": 5, "null": 6, "bootstrap": 7, "power": 8}
 
 
 def child_seed(root: int, purpose: str, *keys: int) -> int:
@@ -248,7 +248,7 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
 
     def fold(k):
         model = fitter.fit(names, train_of(k))
-        return sim(fitter.cond, model, fitter.gs.m_score, child_seed(fitter.gs.seed, "heldout", k), [k])
+        return model, sim(fitter.cond, model, fitter.gs.m_score, child_seed(fitter.gs.seed, "heldout", k), [k])
 
     # Folds are independent and their simulations release the GIL: threads. The all-trials base
     # (whose noise levels every fold uses) is fitted first, once. Seeds are per fold: the result
@@ -256,7 +256,7 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
     fitter.fit((), tuple(range(K)))
     with ThreadPoolExecutor(max(1, fitter.gs.threads)) as pool:
         folds = list(pool.map(fold, range(K)))
-    for k, sims in enumerate(folds):
+    for k, (model, sims) in enumerate(folds):
         train = train_of(k)
         for c in comps:
             x = sims[c][:, 0, :]  # (M, N)
@@ -270,7 +270,7 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             pooled = np.nanmean(var_i)
             var_i = 0.5 * np.where(np.isfinite(var_i), var_i, pooled) + 0.5 * pooled
             floor = (1e-4 * np.nanmean(np.abs(x))) ** 2
-            h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base, fitter.gs.library)
+            h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base, fitter.gs.library, model)
             pred[c]["sd"][k] = np.sqrt((var_i + floor) * (1 + h_track))
             pred[c]["sd_level"][k] = np.sqrt((pooled + floor) * (1 + h_level))
     return pred
@@ -409,7 +409,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
             null = simulate(cond, model, gs.m_null, child_seed(gs.seed, "null", round_))
         found = detect(kind, meas, null, cond.trials, gs.alpha)
         if round_ == 0:
-            mde = minimum_detectable(kind, meas, null, cond.trials, gs.alpha)
+            mde = minimum_detectable(kind, meas, null, cond.trials, gs.alpha, seed=child_seed(gs.seed, "power"))
         flagged = [f for f in found if f["flagged"]]
         for f in flagged:
             disagreements.append({"round": round_, "signal": f["signal"], "robots": [int(cond.robot_ids[i]) for i in f["robots"]],
@@ -513,29 +513,40 @@ _MDE_OF = {"motion": {"heading_bias": ("turn_rate", "sd of the per-robot turn ra
            "blink": {"clock_drift": ("toggle_rate", "relative sd of the per-robot clock rate")}}
 
 
-def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: float, power: float = 0.8) -> dict:
-    """The smallest between-robot spread of each effect that the detection step flags with
-    ``power`` on this dataset (its robots, trials, noise): the within-robot variance of each
-    summary from the data, the spread of the statistic from the fitted base's simulations (a
-    ratio of mean squares, its null law barely depends on the noise's scale).
+#: Effects whose spread the base model takes in as trial-to-trial spread (Eq. 4: identical robots,
+#: all of the spread beyond measurement is per trial), so that the base predicts them wider.
+_BASE_ABSORBS = {"heading_bias", "bias_drift", "clock_drift"}
 
-    Between robots that differ by sd tau, a robot's mean over its K trials varies by an extra
-    tau^2, so the F ratio of between- to within-robot mean squares grows by the factor
-    1 + K tau^2 / s_w^2 (s_w^2: the within-robot variance of one trial's summary). Its logarithm
-    is what :func:`detect` compares with the simulated null (mean m0, sd s0), flagging above
-    m0 + z(alpha / n) s0; with the same spread under the effect, ``power`` is reached when
-    log(1 + K tau^2 / s_w^2) = (z(alpha / n) + z(1 - power)) s0. A drift (robots' summaries
-    changing by sd tau per trial) raises the trend statistic's ratio by 1 + S_kk tau^2 / s_w^2,
-    S_kk = sum over trials of (k - mean k)^2. This covers detection only (naming also needs the
-    held-out score), so it is a lower bound on what gets named.
+
+def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: float, power: float = 0.8,
+                       seed: int = 0) -> dict:
+    """The smallest between-robot spread of each effect that this dataset (its robots, trials,
+    gaps, noise) would have named with ``power``: ``size``, and ``detection_size``, the smallest
+    the detection step alone flags with ``power``.
+
+    Detection: between robots that differ by sd tau, a robot's mean over its K trials varies by
+    an extra tau^2, so the F ratio of between- to within-robot mean squares grows by the factor
+    1 + K tau^2 / s_w^2 (s_w^2: the within-robot variance of one trial's summary, from the data:
+    a between-robot effect, if present, is not in it). Its logarithm is what :func:`detect`
+    compares with the simulated null (sd s0), flagging above z(alpha / n) s0; so ``power`` is
+    reached at log(1 + K tau^2 / s_w^2) = (z(alpha / n) + z(1 - power)) s0. A drift (summaries
+    changing by sd tau per trial) raises the trend statistic's ratio by 1 + S_kk tau^2 / s_w^2.
+
+    Naming also needs the held-out score (:func:`decide`), which is noisier than the F ratio: at
+    the detection size it is often not clear. Its power is found by emulation in summary space
+    (:func:`naming_power`): the data's gaps and within-robot variance, robots differing by tau,
+    detection against the null's spread, and the leave-one-trial-out likelihood of the effect's
+    pooled per-robot estimates against the base, with the bootstrap over robots of the rule.
     """
     from scipy.stats import norm
 
     stats = statistics(kind, null, trials)
-    z = norm.isf(alpha / len(stats)) + norm.isf(1 - power)
+    z_det = norm.isf(alpha / len(stats))
+    z = z_det + norm.isf(1 - power)
     out = {}
     for effect, (comp, unit) in _MDE_OF.get(kind, {}).items():
-        stat = f"{comp}:trial_trend" if effect == "bias_drift" else f"{comp}:between_robots"
+        drift = effect == "bias_drift"
+        stat = f"{comp}:trial_trend" if drift else f"{comp}:between_robots"
         if stat not in stats:  # fewer than 3 trials: no trend statistic
             continue
         f = np.asarray(stats[stat][0], dtype=float)
@@ -543,7 +554,7 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         x = meas[comp]  # (K, N)
         with np.errstate(all="ignore"):
             seen = np.isfinite(x)
-            if effect == "bias_drift":
+            if drift:
                 k = np.arange(trials, dtype=float)[:, None]
                 kb = (np.where(seen, k, 0).sum(0)) / np.maximum(seen.sum(0), 1)
                 dk = np.where(seen, k - kb, 0.0)
@@ -554,16 +565,115 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
                 s_w2 = float(((dev - slope * dk) ** 2).sum() / max(int((seen.sum(0) - 2).clip(0).sum()), 1))
             else:
                 k_eff = float(np.nanmean(seen.sum(0)))
-                # Within-robot variance of the data: a between-robot effect, if present, is not in it.
                 s_w2 = E.within_var(x)
-            tau = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
+            tau_det = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
             level = float(np.nanmean(x))
-        size = tau if comp in ("turn_rate", "diffusion") else tau / abs(level)
-        out[effect] = {"size": size, "unit": unit}
+        taus = tau_det * np.geomspace(0.7, 8.0, 16)
+        pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0, seed=seed)
+        tau = _first_crossing(taus, pw, power)
+        scale = 1.0 if comp in ("turn_rate", "diffusion") else 1.0 / abs(level)
+        out[effect] = {"size": tau * scale, "detection_size": tau_det * scale, "unit": unit}
         if effect == "heading_bias":  # also in the twin's heading-bias units, b = -omega L / v
             v = float(np.nanmean(null["speed"]))
             out[effect]["heading_bias_sd"] = float(abs(heading_bias_from_turn_rate(tau, v)))
     return out
+
+
+def _first_crossing(x, y, level):
+    """The x where y first reaches ``level`` (log-linear interpolation); inf if it never does."""
+    hit = np.nonzero(np.asarray(y) >= level)[0]
+    if not hit.size:
+        return float("inf")
+    j = int(hit[0])
+    if j == 0:
+        return float(x[0])
+    t = (level - y[j - 1]) / max(y[j] - y[j - 1], 1e-12)
+    return float(np.exp(np.log(x[j - 1]) + t * (np.log(x[j]) - np.log(x[j - 1]))))
+
+
+def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, threshold: float, reps: int = 200,
+                 boot: int = 200, seed: int = 0) -> np.ndarray:
+    """Probability that a between-robot effect of spread ``tau`` (each of ``taus``) is flagged
+    and named, by emulation in summary space: per replicate, each robot's trial summaries are
+    its own level (sd tau; a drift: its own slope over trials, sd tau) plus within-robot noise
+    (variance ``s_w2``), where ``seen`` (K, N) has data. Flagged: the statistic of :func:`detect`
+    above its null mean by ``threshold`` (z(alpha / n) times the null's sd). Named: the 95 %
+    bootstrap interval over robots of the leave-one-trial-out log-likelihood gain of the
+    effect's pooled per-robot estimates (:func:`effects.partial_pool`, with their predictive
+    variance) over the base (a population level; its spread the within-robot one, or the whole
+    spread where ``base_absorbs``) is above 0; a drift must also beat a robot's mean, its rival.
+    Common random numbers across ``taus``, so the curve is smooth in tau."""
+    rng = np.random.default_rng(seed)
+    K, N = seen.shape
+    eps = rng.normal(0.0, np.sqrt(s_w2), (reps, K, N))
+    eps[:, ~seen] = np.nan
+    effect = rng.standard_normal((reps, 1, N))
+    if drift:
+        effect = effect * np.arange(K, dtype=float)[:, None]
+    idx = rng.integers(0, N, (boot, N))
+    stat = _f_trend if drift else _f_between
+    null_mean = float(np.nanmean(stat(eps)))
+    out = []
+    for tau in taus:
+        x = eps + tau * effect
+        flagged = stat(x) - null_mean > threshold
+        gain, rival = _heldout_gain(x, drift, base_absorbs)
+        lo = np.percentile(gain[:, idx].sum(-1), 2.5, axis=1)
+        named = flagged & (lo > 0)
+        if drift:
+            named &= np.percentile((gain - rival)[:, idx].sum(-1), 2.5, axis=1) > 0
+        out.append(float(np.mean(named)))
+    return np.array(out)
+
+
+def _heldout_gain(x, drift: bool, base_absorbs: bool):
+    """Leave-one-trial-out log-likelihood gain per (replicate, robot) of pooled per-robot means
+    (or lines, with ``drift``) over a population level; for a drift also the gain of the means
+    (its rival). x: (R, K, N)."""
+    R, K, N = x.shape
+
+    def loglik(y, mu, var):
+        return np.nan_to_num(-0.5 * (y - mu) ** 2 / var - 0.5 * np.log(var))
+
+    gain, rival = np.zeros((R, N)), np.zeros((R, N))
+    kk = np.arange(K, dtype=float)
+    for k in range(K):
+        tr = x[:, [j for j in range(K) if j != k]]
+        t = kk[[j for j in range(K) if j != k]][:, None]
+        y = x[:, k]
+        with np.errstate(all="ignore"):
+            ok = np.isfinite(tr)
+            n = ok.sum(1)  # (R, N)
+            n_all = np.maximum(n.sum(-1, keepdims=True), 1)
+            mu = np.nanmean(tr, axis=(1, 2))[:, None]
+            within = np.nansum((tr - np.nanmean(tr, axis=1, keepdims=True)) ** 2, axis=(1, 2)) / np.maximum(
+                (n - 1).clip(0).sum(-1), 1)
+            spread = np.nanvar(tr, axis=(1, 2)) if base_absorbs else within
+            base = loglik(y, mu, spread[:, None] * (1 + 1 / n_all))
+            mean, w = E.partial_pool(tr)
+            mean_ll = loglik(y, mean, within[:, None] * (1 + w / np.maximum(n, 1)))
+            if not drift:
+                gain += mean_ll - base
+                continue
+            tb = np.where(ok, t, 0).sum(1) / np.maximum(n, 1)
+            dt = np.where(ok, t - tb[:, None, :], 0.0)
+            sxx = (dt**2).sum(1)
+            dev = np.where(ok, tr - np.nanmean(tr, axis=1, keepdims=True), 0.0)
+            slope = (dt * dev).sum(1) / np.where(sxx > 0, sxx, 1.0)
+            res = ((dev - slope[:, None] * dt) ** 2).sum((1, 2)) / np.maximum((n - 2).clip(0).sum(-1), 1)
+            level, w_a = E.partial_pool(tr, s2=res)
+            se2 = res[:, None] / np.where(sxx > 0, sxx, np.inf)
+            has = sxx > 0
+            d_mu = np.where(has, slope, 0).sum(-1, keepdims=True) / np.maximum(has.sum(-1, keepdims=True), 1)
+            d_var = np.where(has, (slope - d_mu) ** 2, 0).sum(-1, keepdims=True) / np.maximum(has.sum(-1, keepdims=True) - 1, 1)
+            tau2 = np.maximum(d_var - np.where(has, se2, 0).sum(-1, keepdims=True) / np.maximum(has.sum(-1, keepdims=True), 1), 0)
+            w_d = np.where(has, tau2 / np.maximum(tau2 + se2, 1e-300), 0.0)
+            d = d_mu + w_d * (slope - d_mu)
+            h = w_a / np.maximum(n, 1) + w_d * (k - tb) ** 2 / np.where(has, sxx, np.inf)
+            line_ll = loglik(y, level + d * (k - tb), res[:, None] * (1 + h))
+            gain += line_ll - base
+            rival += mean_ll - base
+    return gain, rival
 
 
 def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:

@@ -15,7 +15,7 @@ def test_clock_drift_at_the_stated_size_is_flagged_about_80_percent_of_the_time(
     base = E.nominal_model("blink", cond.robot_ids).with_traits(clock_trial_sd=np.full(n, 0.002))
     null = simulate(cond, base, 200, seed=1)
     meas0 = {k: v[0] for k, v in simulate(cond, base, 1, seed=2).items()}
-    size = minimum_detectable("blink", meas0, null, K, 0.01)["clock_drift"]["size"]
+    size = minimum_detectable("blink", meas0, null, K, 0.01)["clock_drift"]["detection_size"]
     rng = np.random.default_rng(3)
     D = 120
     hits = 0
