@@ -130,7 +130,7 @@ def one(job: dict) -> dict:
         _write(job | {"hidden": ""}, root / "data" / (name + "_null"), 1.0)
         null_rep, _ = _gap(root / "data" / (name + "_null"), root / "gap" / (name + "_null"), job["seed"])
         mde = (null_rep["datasets"][0]["minimum_detectable"] or {}).get(effect)
-        if mde is None:
+        if mde is None or mde["size"] is None:
             return {**_ident(job), "skipped": f"no MDE for {effect}"}
         mde_source = mde["size"]
         scale = 1.0
@@ -254,7 +254,7 @@ def _naming(rows):
         by[(r["kind"], r["case"])].append(r)
     for (kind, case), rs in by.items():
         lib = [h for h in rs[0]["hidden"] if h not in OUTSIDE]
-        above = [r for r in rs if lib and all(h in r["mde"] and r["sizes"][h] >= 1.5 * r["mde"][h]["size"] for h in lib)]
+        above = [r for r in rs if lib and all(r["sizes"][h] >= 1.5 * _mde_size(r, h) for h in lib)]
         below = [r for r in rs if r not in above]
         hits = [exact(r["named"], lib) for r in above]
         wrong_free = [none_wrong(r["named"], lib) for r in below]
@@ -264,7 +264,7 @@ def _naming(rows):
     null = [r for r in rows if not r["hidden"]]
     outside = [r for r in rows if set(r["hidden"]) & OUTSIDE]
     hid = [r for r in rows if r["hidden"] and not set(r["hidden"]) & OUTSIDE]
-    above = [r for r in hid if all(h in r["mde"] and r["sizes"][h] >= 1.5 * r["mde"][h]["size"] for h in r["hidden"])]
+    above = [r for r in hid if all(r["sizes"][h] >= 1.5 * _mde_size(r, h) for h in r["hidden"])]
     below = [r for r in hid if r not in above]
     print(f"\n  targets: above MDE named exactly      {_rate(exact(r['named'], r['hidden']) for r in above)}  (>= 95 %)")
     print(f"           below MDE nothing wrong named {_rate(none_wrong(r['named'], r['hidden']) for r in below)}  (>= 95 %)")
@@ -273,16 +273,24 @@ def _naming(rows):
           f"{_rate(r['unexplained'] and not r['named'] for r in outside)}  (>= 90 %)")
 
 
+def _mde_size(row, effect) -> float:
+    """The report's minimum detectable effect (named with 80 % power); inf where it states none."""
+    size = (row["mde"].get(effect) or {}).get("size")
+    return np.inf if size is None else float(size)
+
+
 def _mde(rows):
-    print("\nminimum detectable effect stated by the reports (80 % power at detection), against the earlier issue's sizes:")
+    print("\nminimum detectable effect stated by the reports (named with 80 % power; in brackets detected with 80 % "
+          "power), against the earlier issue's sizes:")
     mdes = defaultdict(list)
     for r in rows:
         for k, v in r["mde"].items():
-            mdes[(k, v["unit"])].append(v["size"])
+            mdes[(k, v["unit"])].append((_mde_size(r, k), v.get("detection_size", np.nan)))
     for (k, unit), v in mdes.items():
+        v = np.array(v)
         ref = EARLIER_SIZES.get(k)
-        below = f"; below {ref:g} in {np.mean(np.array(v) < ref):.0%}" if ref else ""
-        print(f"  {k:22s} median {np.median(v):.3g}, max {np.max(v):.3g} ({unit}){below}")
+        below = f"; below {ref:g} in {np.mean(v[:, 0] < ref):.0%} ({np.mean(v[:, 1] < ref):.0%})" if ref else ""
+        print(f"  {k:22s} median {np.median(v[:, 0]):.3g} ({np.median(v[:, 1]):.3g}), max {np.max(v[:, 0]):.3g} ({unit}){below}")
 
 
 def _recovery(rows):
@@ -291,7 +299,7 @@ def _recovery(rows):
     rec = defaultdict(list)
     for r in rows:
         for k, v in r["recovery"].items():
-            ratio = r["sizes"][k] / r["mde"][k]["size"] if k in r["mde"] else np.inf
+            ratio = r["sizes"][k] / _mde_size(r, k)
             rec[k].append(v | {"ratio": ratio})
     for k, vs in rec.items():
         for lo, hi in ((0, np.inf), (1.5, 3), (3, np.inf)):

@@ -39,9 +39,11 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
             if st["runner_up"].get("why_this_one"):
                 lines.append(f"\nStep {i + 1}: the runner-up shown is {st['runner_up']['why_this_one']}.")
         if s.get("minimum_detectable"):
-            lines += ["", "What this dataset can see (detection with 80 % power; nothing named means nothing larger):"]
+            lines += ["", "What this dataset can see: the smallest spread named with 80 % power (nothing named means "
+                      "nothing larger), and the smallest the detection step alone flags with 80 % power:"]
             for eff, v in s["minimum_detectable"].items():
-                lines.append(f"- {eff}: {v['size']:.3g} ({v['unit']})")
+                named = "not even at 16x the detection size" if v["size"] is None else f"{v['size']:.3g}"
+                lines.append(f"- {eff}: named {named}, detected {v['detection_size']:.3g} ({v['unit']})")
         lines += ["", "Nuisances fitted by the base model: " + ", ".join(f"{k} {v:.3g}" for k, v in s.get("nuisances", {}).items()), ""]
         fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
         res = residuals[j]

@@ -568,12 +568,14 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
                 s_w2 = E.within_var(x)
             tau_det = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
             level = float(np.nanmean(x))
-        taus = tau_det * np.geomspace(0.7, 8.0, 16)
+        taus = tau_det * np.geomspace(0.7, 16.0, 20)
         pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0, seed=seed)
         tau = _first_crossing(taus, pw, power)
         scale = 1.0 if comp in ("turn_rate", "diffusion") else 1.0 / abs(level)
-        out[effect] = {"size": tau * scale, "detection_size": tau_det * scale, "unit": unit}
-        if effect == "heading_bias":  # also in the twin's heading-bias units, b = -omega L / v
+        # None: not named with that power even at 16x the detection size (too few robots).
+        named = tau * scale if np.isfinite(tau) else None
+        out[effect] = {"size": named, "detection_size": tau_det * scale, "unit": unit}
+        if effect == "heading_bias" and named is not None:  # also in the twin's units, b = -omega L / v
             v = float(np.nanmean(null["speed"]))
             out[effect]["heading_bias_sd"] = float(abs(heading_bias_from_turn_rate(tau, v)))
     return out
