@@ -170,16 +170,7 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
         if noise is not None:
             m = m.with_traits(sensor_noise=noise.swarm.sensor_noise)
         elif resim is not None:
-            # The residual variance about each sweep's line is the reading noise's variance plus
-            # what the line does not follow (the ceiling's bend): linear in noise^2.
-            r0 = np.nanmean(resim(m.with_traits(sensor_noise=np.zeros(n)))["residual_sd"] ** 2)
-            r1 = np.nanmean(resim(m.with_traits(sensor_noise=np.full(n, PROBE["sensor_noise"])))["residual_sd"] ** 2)
-            target = np.nanmean(meas["residual_sd"] ** 2)
-            noise2 = PROBE["sensor_noise"] ** 2 * max(target - r0, 0.0) / max(r1 - r0, 1e-12)
-            # Never below the ADC's own rounding (1-count steps: variance 1/12): a sensor
-            # without noise still reads integers, and a noiseless model would make every
-            # simulated sweep identical, its null spread 0 and any difference infinitely significant.
-            m = m.with_traits(sensor_noise=np.full(n, np.sqrt(max(noise2, ADC_ROUNDING_VAR))))
+            m = fit_sensor_noise(m, meas, resim)
         return m
     # Identical clocks; the spread of trial rates (Eq. 4's sigma for clocks) is fitted.
     c = model.swarm.clock_rate.mean() * np.nanmean(meas["toggle_rate"]) / np.nanmean(ref["toggle_rate"])
@@ -199,6 +190,36 @@ def _est_var_rel(ref, model, resim=None):
 
 
 ADC_ROUNDING_VAR = 1.0 / 12.0  # counts^2
+
+
+def fit_sensor_noise(m: TwinModel, meas: dict, resim) -> TwinModel:
+    """The light sensor's reading noise from within-robot statistics: how much one robot's fitted
+    gain and offset vary from sweep to sweep, each linear in noise^2 (what the sweeps share, a
+    robot's place in the light and the sensor's bend at the ceiling, is the intercept), mapped by
+    two simulations of ``m`` (at the floor and at a probe level) and solved by least squares over
+    the two rows. Not the residual
+    about each sweep's line: how far the bend departs from a line depends on the sensor's shape,
+    which another world need not share with the twin's. Never below the ADC's own rounding
+    (1-count steps: variance 1/12): a sensor without noise still reads integers, and a noiseless
+    model would make every simulated sweep identical, its null spread 0 and any difference
+    infinitely significant."""
+    n = len(m.swarm)
+
+    def stats(s):
+        return np.array([within_var(s["gain"]), within_var(s["offset"])])
+
+    def sim_stats(level):
+        sims = resim(m.with_traits(sensor_noise=np.full(n, level)))
+        return np.mean([stats({k: v[j] for k, v in sims.items()}) for j in range(len(sims["gain"]))], axis=0)
+
+    # The map is anchored at the floor, not at 0: without noise the rounding of a smooth sweep
+    # is the same in every sweep, with noise it dithers, so the statistics jump between the two.
+    r0, r1 = sim_stats(np.sqrt(ADC_ROUNDING_VAR)), sim_stats(PROBE["sensor_noise"])
+    slope = (r1 - r0) / (PROBE["sensor_noise"] ** 2 - ADC_ROUNDING_VAR)
+    a = slope / np.maximum(np.abs(slope), 1e-30)  # rows scaled so they weigh alike
+    b = (stats(meas) - r0) / np.maximum(np.abs(slope), 1e-30)
+    excess = max(float(a @ b / max(a @ a, 1e-30)), 0.0)
+    return m.with_traits(sensor_noise=np.full(n, np.sqrt(ADC_ROUNDING_VAR + excess)))
 
 #: Probe levels for the linear maps from noise variances to statistics (any level well above
 #: the simulation noise of the statistics and below where the robot would drive backwards).
@@ -396,7 +417,9 @@ class SensorGain(Effect):
             g = np.where(ok, m.swarm.sensor_gain * mg / np.where(ok, sg, 1.0), m.swarm.sensor_gain)
             o = np.where(ok, m.swarm.sensor_offset + mo - so, m.swarm.sensor_offset)
             m = m.with_traits(sensor_gain=g, sensor_offset=o)
-        return m
+        # The reading noise that is left once robots differ in gain: a robot's bend at the
+        # ceiling moves with its gain, and with it how much its sweeps vary.
+        return fit_sensor_noise(m, meas, resim) if resim is not None else m
 
 
 class ClockDrift(Effect):

@@ -250,9 +250,12 @@ def mask_before_onset(x, y, noise_m: float, move_m: float = 0.004):
     return np.where(keep, x, np.nan), np.where(keep, y, np.nan)
 
 
-def light_sweep(stimulus, reading, knee_counts: float = 900.0, min_stimulus: float = 0.02) -> dict:
+def light_sweep(stimulus, reading, knee_counts: float = 600.0, min_stimulus: float = 0.02) -> dict:
     """Gain (counts per unit stimulus), offset (counts) and residual sd of each track's
-    linear response below the saturation knee."""
+    linear response, from readings below ``knee_counts``: well below the ceiling (1023), where
+    a sensor's approach to saturation (its knee, which differs between sensors and between
+    worlds) bends the response by under 1 %. Nearer the ceiling, which samples of the bend a
+    track happens to include varies from sweep to sweep and makes the fitted gain vary with it."""
     use = np.isfinite(reading) & np.isfinite(stimulus) & (reading < knee_counts) & (stimulus > min_stimulus)
     w = use.astype(float)
     n = w.sum(-1)
@@ -265,8 +268,12 @@ def light_sweep(stimulus, reading, knee_counts: float = 900.0, min_stimulus: flo
     offset = mr - gain * ms
     resid = np.where(use, r - (offset[..., None] + gain[..., None] * s), 0.0)
     sd = np.sqrt((resid**2).sum(-1) / np.maximum(n - 2, 1))
+    # What rounding to whole counts alone (variance 1/12 per reading) makes the fitted gain and
+    # offset vary by: differences below it are the ADC's, not the sensor's.
+    q = 1.0 / 12.0
+    floors = {"gain_floor": q / np.maximum(var, 1e-12), "offset_floor": q * (1.0 / np.maximum(n, 1) + ms**2 / np.maximum(var, 1e-12))}
     bad = n < 5
-    return {k: np.where(bad, np.nan, v) for k, v in {"gain": gain, "offset": offset, "residual_sd": sd}.items()}
+    return {k: np.where(bad, np.nan, v) for k, v in {"gain": gain, "offset": offset, "residual_sd": sd, **floors}.items()}
 
 
 def blink(led, dt_s: float) -> dict:

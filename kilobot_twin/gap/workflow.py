@@ -76,8 +76,9 @@ def child_seed(root: int, purpose: str, *keys: int) -> int:
 
 # --- statistics ------------------------------------------------------------------------------
 
-def _f_between(x):
-    """One-way ANOVA F of robots over trials; x (..., K, N) -> (...)."""
+def _f_between(x, floor=None):
+    """One-way ANOVA F of robots over trials; x (..., K, N) -> (...). ``floor`` (...; optional):
+    the least within-robot mean square that counts (a measurement's resolution)."""
     with np.errstate(all="ignore"):
         m_i = np.nanmean(x, axis=-2, keepdims=True)
         m = np.nanmean(x, axis=(-2, -1), keepdims=True)
@@ -85,6 +86,8 @@ def _f_between(x):
         N = x.shape[-1]
         msb = np.nansum(n_i * (m_i - m) ** 2, axis=(-2, -1)) / (N - 1)
         msw = np.nansum((x - m_i) ** 2, axis=(-2, -1)) / np.maximum(np.isfinite(x).sum((-2, -1)) - N, 1)
+        if floor is not None:
+            msw = np.maximum(msw, floor)
         return np.log(msb / msw)
 
 
@@ -137,11 +140,20 @@ def statistics(kind: str, s: dict, trials: int) -> dict:
         out["diffusion:between_robots"] = (_f_between(s["diffusion"]), 1)
         out["speed:heading_dependence"] = (_heading_dependence(s["speed"], s["heading"]), 1)
     elif kind == "light_sweep":
-        out["gain:between_robots"] = (_f_between(s["gain"]), 1)
-        out["offset:between_robots"] = (_f_between(s["offset"]), 1)
+        out["gain:between_robots"] = (_f_between(s["gain"], _resolution(s, "gain")), 1)
+        out["offset:between_robots"] = (_f_between(s["offset"], _resolution(s, "offset")), 1)
     else:
         out["toggle_rate:between_robots"] = (_f_between(s["toggle_rate"]), 1)
     return out
+
+
+def _resolution(s: dict, comp: str):
+    """The variance a summary has from the ADC's rounding alone (mean over tracks), if known."""
+    floor = s.get(comp + "_floor")
+    if floor is None:
+        return None
+    with np.errstate(all="ignore"):
+        return np.nanmean(floor, axis=(-2, -1))
 
 
 def _p_value(obs, null, sided):
@@ -565,7 +577,7 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
                 s_w2 = float(((dev - slope * dk) ** 2).sum() / max(int((seen.sum(0) - 2).clip(0).sum()), 1))
             else:
                 k_eff = float(np.nanmean(seen.sum(0)))
-                s_w2 = E.within_var(x)
+                s_w2 = max(E.within_var(x), _resolution(meas, comp) or 0.0)
             tau_det = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
             level = float(np.nanmean(x))
         taus = tau_det * np.geomspace(0.7, 16.0, 20)

@@ -5,11 +5,14 @@ import importlib.util
 import json
 from pathlib import Path
 
+import inspect
+
 import numpy as np
 import pytest
 
 from kilobot_twin.recording import measured
 from kilobot_twin.gap.model import measured_summaries
+from kilobot_twin.gap.summaries import light_sweep
 
 _spec = importlib.util.spec_from_file_location("indep_world", Path(__file__).parents[2] / "benchmarks" / "indep_world.py")
 iw = importlib.util.module_from_spec(_spec)
@@ -57,14 +60,15 @@ def test_noiseless_sensor_and_clock(tmp_path):
     g = np.array([t["robots"][str(i)]["sensor_gain"] for i in range(t["shape"]["robots"])])
     o = np.array([t["robots"][str(i)]["sensor_offset"] for i in range(t["shape"]["robots"])])
     # Expected: a least-squares line (numpy's polyfit) through the world's noiseless response
-    # on a fine grid of V, below the 900-count knee the summary uses; rounding to counts moves
-    # it by far less than the tolerance.
+    # on a fine grid of V, below the knee the summary uses; rounding to counts moves it by far
+    # less than the tolerance.
+    knee = inspect.signature(light_sweep).parameters["knee_counts"].default
     V = np.linspace(0.02, 1, 20001)
     exp_g, exp_o = np.empty(len(g)), np.empty(len(g))
     for i in range(len(g)):
         raw = o[i] + g[i] * 1024 * V
         r = raw / (1 + (raw / 1023) ** 9) ** (1 / 9)
-        exp_g[i], exp_o[i] = np.polyfit(V[r < 900], r[r < 900], 1)
+        exp_g[i], exp_o[i] = np.polyfit(V[r < knee], r[r < knee], 1)
     seen = _seen(t)
     np.testing.assert_allclose(s["gain"][seen], np.broadcast_to(exp_g, seen.shape)[seen], rtol=2e-3)
     np.testing.assert_allclose(s["offset"][seen], np.broadcast_to(exp_o, seen.shape)[seen], atol=1.5)
