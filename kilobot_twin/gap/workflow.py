@@ -206,6 +206,7 @@ class _Fitter:
         self.cond, self.meas, self.start, self.gs, self.fit_base = cond, meas, start, gs, fit_base
         self.cache = {}  # (names, trials) -> fitted model
         self.base_cache = {}  # trials -> fitted base model
+        self.refs = {}  # (depth, names so far, trials) -> reference simulation of that model
 
     def meas_on(self, trials):
         return E.Summaries({k: v[trials] for k, v in self.meas.items()}, trials)
@@ -232,7 +233,12 @@ class _Fitter:
                 self.base_cache[key[1]] = E.fit_base(model, meas, ref, resim_base, noise)
             model = self.base_cache[key[1]]
         for j, name in enumerate(names):
-            ref = simulate(self.cond, model, M, child_seed(self.gs.seed, "effect_ref", depth, j), trials)
+            # The reference simulation depends only on the model so far (same seed for every
+            # candidate at this depth): simulated once per (names so far, trials), not per candidate.
+            ref_key = (depth, names[:j], key[1])
+            ref = self.refs.get(ref_key)
+            if ref is None:
+                ref = self.refs[ref_key] = simulate(self.cond, model, M, child_seed(self.gs.seed, "effect_ref", depth, j), trials)
 
             def resim(m, _j=j):
                 return simulate(self.cond, m, M, child_seed(self.gs.seed, "effect_resim", depth, _j), trials)
