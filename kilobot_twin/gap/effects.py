@@ -197,9 +197,9 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim) -> TwinModel:
     gain and offset vary from sweep to sweep, each linear in noise^2 (what the sweeps share, a
     robot's place in the light and the sensor's bend at the ceiling, is the intercept), mapped by
     two simulations of ``m`` (at the floor and at a probe level) and solved by least squares over
-    the two rows. Not the residual
-    about each sweep's line: how far the bend departs from a line depends on the sensor's shape,
-    which another world need not share with the twin's. Never below the ADC's own rounding
+    the two rows. Not the residual about each sweep's line: how far the bend departs from a line
+    depends on the sensor's shape, which another world need not share with the twin's. Never
+    below the ADC's own rounding
     (1-count steps: variance 1/12): a sensor without noise still reads integers, and a noiseless
     model would make every simulated sweep identical, its null spread 0 and any difference
     infinitely significant."""
