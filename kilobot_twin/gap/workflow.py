@@ -277,7 +277,7 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
     for k, (model, sims) in enumerate(folds):
         train = train_of(k)
         for c in comps:
-            x = sims[c][:, 0, :]  # (M, N)
+            x = _without_wild_replicates(sims[c][:, 0, :])  # (M, N)
             pred[c]["mean"][k] = np.nanmean(x, axis=0)
             # Each robot's spread (robots may differ in noise), shrunk halfway to the pooled one
             # (M replicates estimate a variance to sqrt(2 / M)); floored at 1e-4 of the level so a
@@ -292,6 +292,19 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             pred[c]["sd"][k] = np.sqrt((var_i + floor) * (1 + h_track))
             pred[c]["sd_level"][k] = np.sqrt((pooled + floor) * (1 + h_level))
     return pred
+
+
+def _without_wild_replicates(x, k: float = 10.0):
+    """Simulated replicates (M, N) with the wild ones NaN: farther than ``k`` robust sds (1.4826
+    median absolute deviations) from the robot's median. A simulated track that is short and
+    gappy (the data's mask) now and then fails to unwrap its heading and gives a diffusion
+    thousands of times the rest; one such replicate in 30 would set the robot's predictive
+    spread, and through the pooled spread every robot's."""
+    with np.errstate(all="ignore"):
+        med = np.nanmedian(x, axis=0)
+        scale = 1.4826 * np.nanmedian(np.abs(x - med), axis=0)
+        wild = np.abs(x - med) > k * np.where(scale > 0, scale, np.inf)
+    return np.where(wild, np.nan, x)
 
 
 def _loglik_per_robot(meas, pred, comps):

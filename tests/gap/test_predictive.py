@@ -127,3 +127,18 @@ def test_leverage_of_pooled_estimates():
     h, h_level = E.leverage("motion", ("bias_drift",), "turn_rate", [0, 1, 2], 3, 3, model=m)
     assert h == pytest.approx([0.5 / 3 + 0.25 * 2, 1 / 3 + 2, 0.0])
     assert h_level == pytest.approx(1 / 3 + 2)
+
+
+def test_a_wild_simulated_replicate_does_not_set_the_predictive_spread():
+    """30 Gaussian replicates per robot and one of them replaced by a value 1000 sd off (a
+    heading that failed to unwrap): only that one is dropped; Gaussian replicates lose none
+    (10 robust sd: probability ~1e-23 each)."""
+    from kilobot_twin.gap.workflow import _without_wild_replicates
+
+    rng = np.random.default_rng(2)
+    x = rng.normal(1.0, 0.1, (30, 12))
+    assert np.isfinite(_without_wild_replicates(x)).all()
+    x[7, 3] = 100.0
+    kept = _without_wild_replicates(x)
+    assert np.isnan(kept[7, 3]) and np.isfinite(kept).sum() == x.size - 1
+    assert np.nanstd(kept[:, 3], ddof=1) == pytest.approx(np.std(np.delete(x[:, 3], 7), ddof=1))
