@@ -74,7 +74,8 @@ def partial_pool(x, s2=None):
     w, both (..., N).
 
     A robot's mean over n_i trials is its own level plus noise of variance s^2 / n_i (s^2: the
-    pooled within-robot variance of one trial's summary, or ``s2``); robots' levels spread by
+    within-robot variance of one trial's summary beyond the trials' common shifts, or ``s2``;
+    robots are then compared on trial-centred values, see below); robots' levels spread by
     tau^2 = (variance of the robots' means) - (mean of s^2 / n_i), floored at 0 (method of
     moments). The pooled mean is mu + w_i (mean_i - mu), w_i = tau^2 / (tau^2 + s^2 / n_i):
     about 1 when robots differ by much more than one robot's estimate is uncertain, 0 when the
@@ -84,10 +85,20 @@ def partial_pool(x, s2=None):
     x = np.asarray(x, dtype=float)
     with np.errstate(all="ignore"):
         n = np.isfinite(x).sum(-2)
-        m = np.nanmean(x, axis=-2)
         if s2 is None:
-            dev = x - m[..., None, :]
-            s2 = np.nansum(dev**2, axis=(-2, -1)) / np.maximum((n - 1).clip(0).sum(-1), 1)
+            # What a trial shifts for every robot alike (the floor, the battery charge) moves no
+            # robot against the others: robots are compared on trial-centred values, and s^2 is
+            # what is left of a robot's trials beyond its level and the trials' shifts (the
+            # residual of the two-way layout, (K' - 1)(N - 1) degrees of freedom when complete).
+            shift = np.nanmean(x, axis=-1, keepdims=True)
+            xc = x - shift
+            m = np.nanmean(xc, axis=-2) + np.nanmean(shift, axis=(-2, -1))[..., None]
+            dev = xc - np.nanmean(xc, axis=-2, keepdims=True)
+            trials = (np.isfinite(x).sum(-1) > 0).sum(-1)
+            dof = (n - 1).clip(0).sum(-1) - (trials - 1).clip(0)
+            s2 = np.nansum(dev**2, axis=(-2, -1)) / np.maximum(dof, 1)
+        else:
+            m = np.nanmean(x, axis=-2)
     s2 = np.asarray(s2, dtype=float)[..., None]
     ok = n > 0
     robots = ok.sum(-1, keepdims=True)

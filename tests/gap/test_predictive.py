@@ -75,20 +75,26 @@ def test_bootstrap_of_the_level_part_is_centred_on_the_estimate():
 
 
 def test_partial_pool_by_hand():
-    """2 trials x 3 robots, worked by hand: robot means 1, 3, 6; within-robot variance
-    (1 + 1 + 1 + 1 + 4 + 4) / 3 = 4, so a mean of 2 trials errs by 4 / 2 = 2; the means spread by
-    57 / 9, of which 57 / 9 - 2 = 39 / 9 is the robots' own; w = (39 / 9) / (57 / 9) = 13 / 19."""
+    """2 trials x 3 robots, worked by hand. Trial means 2 and 14/3; trial-centred values
+    [[-2, 0, 2], [-8/3, -2/3, 10/3]]; robot means 1, 3, 6 (centred means + the grand mean 10/3);
+    residuals +-1/3, +-1/3, +-2/3, sum of squares 4/3 over (2 - 1)(3 - 1) = 2 degrees of freedom:
+    s^2 = 2/3, so a mean of 2 trials errs by 1/3; the means spread by 57/9, of which
+    57/9 - 1/3 = 6 is the robots' own; w = 6 / (6 + 1/3) = 18/19."""
     x = np.array([[0.0, 2.0, 4.0], [2.0, 4.0, 8.0]])
     pooled, w = E.partial_pool(x)
-    mu, w_hand = 10 / 3, 13 / 19
+    mu, w_hand = 10 / 3, 18 / 19
     assert w == pytest.approx(np.full(3, w_hand))
     assert pooled == pytest.approx(mu + w_hand * (np.array([1.0, 3.0, 6.0]) - mu))
+    # A shift shared by every robot in a trial does not count as a robot's noise: the same
+    # robots with trial 2 shifted by 5 pool exactly as before (only the level moves).
+    shifted, w_shifted = E.partial_pool(x + np.array([[0.0], [5.0]]))
+    assert w_shifted == pytest.approx(w) and shifted == pytest.approx(pooled + 2.5)
     # Robots that do not differ beyond their noise: every robot predicted by the population mean.
     same = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 1.0]])
     pooled, w = E.partial_pool(same)
     assert w == pytest.approx(np.zeros(3)) and pooled == pytest.approx(np.full(3, 0.5))
     # A robot missing from a trial has a larger error, so it is pooled more.
-    x = np.array([[0.0, 2.0, 4.0], [2.0, np.nan, 8.0]])
+    x = np.array([[0.0, 2.0, 4.0, 1.0], [2.0, np.nan, 8.0, 3.0], [1.0, 3.0, 5.0, 2.0]])
     _, w = E.partial_pool(x)
     assert w[1] < w[0] == pytest.approx(w[2])
 
