@@ -14,4 +14,9 @@ class ConfigError(ValueError):
         where = f"{source}: " if source else ""
         tail = f"; {fix}" if fix else ""
         super().__init__(f"{where}{field}: {problem}{tail}")
-        self.field = field
+        self.field, self.problem, self.fix, self.source = field, problem, fix, source
+
+    def __reduce__(self):
+        # Raised in worker processes (process pools, Dask) and sent back pickled: rebuilt from
+        # its own fields (the default rebuilds from the message alone and fails).
+        return type(self), (self.field, self.problem, self.fix, self.source)
