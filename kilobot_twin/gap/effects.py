@@ -61,10 +61,13 @@ def _bias(turn_rate, model: TwinModel):
 
 
 def within_var(b):
-    """Pooled within-robot variance over trials (ddof per robot), b: (K, N)."""
-    dev = b - _nanmean(b, axis=0)[None, :]
-    n = np.isfinite(b).sum(0)
-    return float(np.nansum(dev**2) / max(int(np.sum(n - 1)), 1))
+    """Pooled within-robot variance over trials (ddof per robot), b: (..., K, N) -> float, or
+    an array over the leading axes."""
+    b = np.asarray(b, dtype=float)
+    dev = b - _nanmean(b, axis=-2)[..., None, :]
+    dof = (np.isfinite(b).sum(-2) - 1).clip(0).sum(-1)
+    v = np.nansum(dev**2, axis=(-2, -1)) / np.maximum(dof, 1)
+    return float(v) if v.ndim == 0 else v
 
 
 def partial_pool(x, s2=None):
@@ -100,15 +103,22 @@ def partial_pool(x, s2=None):
         else:
             m = np.nanmean(x, axis=-2)
     s2 = np.asarray(s2, dtype=float)[..., None]
-    ok = n > 0
+    return shrink(m, np.where(n > 0, s2 / np.maximum(n, 1), np.inf))
+
+
+def shrink(est, se2):
+    """Per-robot estimates (..., N) with sampling variances ``se2`` (inf: no estimate), pulled
+    towards their mean: mu + w_i (est_i - mu), w_i = tau^2 / (tau^2 + se2_i), tau^2 the spread of
+    the estimates beyond their sampling variance (method of moments, floored at 0). Robots without
+    an estimate get mu (weight 0); with one robot there is nothing to pool with (weight 1)."""
+    ok = np.isfinite(est) & np.isfinite(se2)
     robots = ok.sum(-1, keepdims=True)
-    se2 = s2 / np.maximum(n, 1)
-    mu = np.where(ok, m, 0.0).sum(-1, keepdims=True) / np.maximum(robots, 1)
-    spread = np.where(ok, (m - mu) ** 2, 0.0).sum(-1, keepdims=True) / np.maximum(robots - 1, 1)
+    mu = np.where(ok, est, 0.0).sum(-1, keepdims=True) / np.maximum(robots, 1)
+    spread = np.where(ok, (est - mu) ** 2, 0.0).sum(-1, keepdims=True) / np.maximum(robots - 1, 1)
     tau2 = np.maximum(spread - np.where(ok, se2, 0.0).sum(-1, keepdims=True) / np.maximum(robots, 1), 0.0)
-    w = np.where(ok, tau2 / np.maximum(tau2 + se2, 1e-300), 0.0)
-    w = np.where(robots >= 2, w, 1.0)  # one robot: nothing to pool with
-    return np.where(ok, mu + w * (m - mu), mu), w
+    w = np.where(ok, tau2 / np.maximum(tau2 + np.where(ok, se2, 0.0), 1e-300), 0.0)
+    w = np.where(robots >= 2, w, 1.0)
+    return np.where(ok, mu + w * (est - mu), mu), w
 
 
 def _est_var_bias(ref, model, resim=None):
@@ -216,12 +226,11 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim) -> TwinModel:
     infinitely significant."""
     n = len(m.swarm)
 
-    def stats(s):
-        return np.array([within_var(s["gain"]), within_var(s["offset"])])
+    def stats(s):  # (2,), averaged over replicates for simulations
+        return np.array([np.mean(within_var(s["gain"])), np.mean(within_var(s["offset"]))])
 
     def sim_stats(level):
-        sims = resim(m.with_traits(sensor_noise=np.full(n, level)))
-        return np.mean([stats({k: v[j] for k, v in sims.items()}) for j in range(len(sims["gain"]))], axis=0)
+        return stats(resim(m.with_traits(sensor_noise=np.full(n, level))))
 
     # The map is anchored at the floor, not at 0: without noise the rounding of a smooth sweep
     # is the same in every sweep, with noise it dithers, so the statistics jump between the two.
@@ -340,12 +349,7 @@ class BiasDrift(Effect):
         # Levels (at each robot's mean trial) and slopes pooled towards the population's, each
         # with its own sampling variance: var / n_i and var / S_xx,i (see partial_pool).
         level, w = partial_pool(b, s2=var)
-        has = sxx > 0
-        se2 = np.where(has, var / np.where(has, sxx, 1.0), np.inf)
-        d_mu = float(np.mean(d[has])) if has.any() else 0.0
-        tau2 = max(float(np.var(d[has], ddof=1) - np.mean(se2[has])), 0.0) if has.sum() > 1 else 0.0
-        w_d = np.where(has, tau2 / np.maximum(tau2 + np.where(has, se2, 1.0), 1e-300), 0.0)
-        d = d_mu + w_d * (d - d_mu)
+        d, w_d = shrink(d, np.where(sxx > 0, var / np.maximum(sxx, 1e-300), np.inf))  # slopes, as the levels
         return model.with_traits(heading_bias=level - d * kbar, bias_drift=d,
                                  bias_trial_sd=np.full(n, np.sqrt(spread))).pooled("turn_rate", w, w_d)
 

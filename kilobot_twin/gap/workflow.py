@@ -679,8 +679,7 @@ def _heldout_gain(x, drift: bool, base_absorbs: bool):
             n = ok.sum(1)  # (R, N)
             n_all = np.maximum(n.sum(-1, keepdims=True), 1)
             mu = np.nanmean(tr, axis=(1, 2))[:, None]
-            within = np.nansum((tr - np.nanmean(tr, axis=1, keepdims=True)) ** 2, axis=(1, 2)) / np.maximum(
-                (n - 1).clip(0).sum(-1), 1)
+            within = E.within_var(tr)
             spread = np.nanvar(tr, axis=(1, 2)) if base_absorbs else within
             base = loglik(y, mu, spread[:, None] * (1 + 1 / n_all))
             mean, w = E.partial_pool(tr)
@@ -695,14 +694,8 @@ def _heldout_gain(x, drift: bool, base_absorbs: bool):
             slope = (dt * dev).sum(1) / np.where(sxx > 0, sxx, 1.0)
             res = ((dev - slope[:, None] * dt) ** 2).sum((1, 2)) / np.maximum((n - 2).clip(0).sum(-1), 1)
             level, w_a = E.partial_pool(tr, s2=res)
-            se2 = res[:, None] / np.where(sxx > 0, sxx, np.inf)
-            has = sxx > 0
-            d_mu = np.where(has, slope, 0).sum(-1, keepdims=True) / np.maximum(has.sum(-1, keepdims=True), 1)
-            d_var = np.where(has, (slope - d_mu) ** 2, 0).sum(-1, keepdims=True) / np.maximum(has.sum(-1, keepdims=True) - 1, 1)
-            tau2 = np.maximum(d_var - np.where(has, se2, 0).sum(-1, keepdims=True) / np.maximum(has.sum(-1, keepdims=True), 1), 0)
-            w_d = np.where(has, tau2 / np.maximum(tau2 + se2, 1e-300), 0.0)
-            d = d_mu + w_d * (slope - d_mu)
-            h = w_a / np.maximum(n, 1) + w_d * (k - tb) ** 2 / np.where(has, sxx, np.inf)
+            d, w_d = E.shrink(slope, np.where(sxx > 0, res[:, None] / np.maximum(sxx, 1e-300), np.inf))
+            h = w_a / np.maximum(n, 1) + w_d * (k - tb) ** 2 / np.where(sxx > 0, sxx, np.inf)
             line_ll = loglik(y, level + d * (k - tb), res[:, None] * (1 + h))
             gain += line_ll - base
             rival += mean_ll - base
