@@ -73,6 +73,8 @@ def _motion_tracks(x, y, L, l1, l2, s1, s2, dt, out):  # pragma: no cover - comp
         dist_sum, s_sum, c_sum, t_sum, u_sum = 0.0, 0.0, 0.0, 0.0, 0.0
         last, acc, first = 0.0, 0.0, 0.0
         seen = False
+        refused = 0
+        h = 0.0
         for j in range(Th):
             dx = x[r, j + L] - x[r, j]
             dy = y[r, j + L] - y[r, j]
@@ -80,9 +82,20 @@ def _motion_tracks(x, y, L, l1, l2, s1, s2, dt, out):  # pragma: no cover - comp
             if ok[j]:
                 h = math.atan2(dy, dx)
                 if seen:  # unwrap: the wrapped change since the last observed heading
-                    acc += (h - last + math.pi) % (2 * math.pi) - math.pi
+                    step = (h - last + math.pi) % (2 * math.pi) - math.pi
+                    # A chord that turned by over a quarter turn since the last one is a
+                    # tracking error (a point centimetres off reverses a 2 cm chord), not the
+                    # robot: refused, else the unwrapping slips by 2 pi. A new heading that
+                    # persists for a whole lag is accepted.
+                    if abs(step) > 0.5 * math.pi and refused < L:
+                        ok[j] = False
+                        refused += 1
+                    else:
+                        acc += step
+                        refused = 0
                 else:
                     first, seen = h, True
+            if ok[j]:
                 last = h
                 n += 1
                 dist_sum += math.hypot(dx, dy)

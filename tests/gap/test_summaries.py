@@ -24,6 +24,25 @@ def test_turn_rate_and_speed_of_noisy_gappy_tracks_match_kinematics():
     assert np.all(np.abs(s["speed"][0] / v - 1) < 0.05)
 
 
+def test_a_glitch_that_reverses_a_chord_does_not_slip_the_heading():
+    """A straight track at the Kilobot's speed, 2 mm tracking noise, and a glitch: one frame 3 cm
+    off, against the direction of travel (chords are 2.3 cm over the 2 s lag). Unwrapped naively,
+    the chords that end and start at the glitch reverse and the heading slips by 2 pi, which shows
+    as a turn rate and a diffusion orders above the track's own. The true turn rate is 0."""
+    rng = np.random.default_rng(3)
+    T, dt, v = 601, 0.1, synth.FORWARD_SPEED_M_S
+    t = np.arange(T) * dt
+    x = v * t + 0.002 * rng.standard_normal(T)
+    y = 0.002 * rng.standard_normal(T)
+    clean = summaries.motion(x[None], y[None], dt)
+    x[300] -= 0.03
+    s = summaries.motion(x[None], y[None], dt)
+    # without the glitch: turn rate 0 to within the noise (2 mm over 60 s: ~1e-4 rad/s)
+    assert abs(clean["turn_rate"][0]) < 3e-4
+    assert abs(s["turn_rate"][0]) < 3e-4 and abs(s["diffusion"][0] - clean["diffusion"][0]) < 1e-4, (s, clean)
+    assert abs(s["speed"][0] / v - 1) < 0.02
+
+
 def test_light_sweep_gain_is_linear_slope():
     stim = np.linspace(0, 1, 200)[None, None, :]
     reading = np.minimum(5 + 2000 * stim, 1023)
@@ -61,9 +80,23 @@ def _motion_vectorised(x, y, dt_s, lag_s=2.0, msd_lags_s=(5.0, 20.0), speed_lags
         m = ok[..., lag:] & ok[..., :-lag]
         return np.where(m, d * d, 0.0).sum(-1) / np.maximum(m.sum(-1), 1)
 
+    def refused(h, L):
+        """The refusal rule, one track at a time: a heading that turned by over a quarter turn
+        since the last accepted one is dropped, unless L in a row were dropped."""
+        out = np.zeros(h.shape, bool)
+        for idx in np.ndindex(h.shape[:-1]):
+            last, run = None, 0
+            for j in np.flatnonzero(np.isfinite(h[idx])):
+                if last is not None and abs(wrap(h[idx][j] - last)) > np.pi / 2 and run < L:
+                    out[idx][j], run = True, run + 1
+                else:
+                    last, run = h[idx][j], 0
+        return out
+
     L = max(1, int(round(lag_s / dt_s)))
     dx, dy = x[..., L:] - x[..., :-L], y[..., L:] - y[..., :-L]
     dist, h = np.hypot(dx, dy), np.arctan2(dy, dx)
+    h = np.where(refused(h, L), np.nan, h)
     ok = np.isfinite(h)
     step = np.nan_to_num(wrap(np.diff(ffill(h), axis=-1)), nan=0.0)
     first = np.where(ok.any(-1), np.take_along_axis(h, np.argmax(ok, axis=-1)[..., None], -1)[..., 0], 0.0)
@@ -93,8 +126,9 @@ def _motion_vectorised(x, y, dt_s, lag_s=2.0, msd_lags_s=(5.0, 20.0), speed_lags
 
 
 def test_compiled_motion_summaries_equal_a_vectorised_second_implementation():
-    """Random walks crossing the +-pi cut many times, with dropped frames, long losses, a track
-    with too few samples, leading gaps and a track that never appears: both agree to 1e-9."""
+    """Random walks crossing the +-pi cut many times (and turning so fast that chords are refused),
+    with dropped frames, long losses, a track with too few samples, leading gaps and a track that
+    never appears: both agree to 1e-9."""
     rng = np.random.default_rng(7)
     K, N, T, dt = 3, 7, 700, 1 / 15
     th = np.cumsum(rng.normal(0, 0.3, (K, N, T)), axis=-1) + rng.uniform(-3, 3, (K, N, 1))
