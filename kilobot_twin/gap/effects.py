@@ -243,7 +243,7 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim) -> TwinModel:
 
 #: Probe levels for the linear maps from noise variances to statistics (any level well above
 #: the simulation noise of the statistics and below where the robot would drive backwards).
-PROBE = {"sigma_omega": 0.02, "sigma_v": 0.001, "speed_trial_sd": 0.03, "sensor_noise": 8.0}
+PROBE = {"sigma_omega": 0.02, "sigma_v": 0.001, "speed_trial_sd": 0.03, "bias_trial_sd": 0.02, "sensor_noise": 8.0}
 
 
 def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
@@ -251,27 +251,51 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     sigma_omega, speed-noise intensity sigma_v (within a trial) and the relative trial-to-trial
     speed jitter.
 
-    The three statistics of :func:`_noise_stats` (mean heading diffusion; pooled within-robot
-    variance of trial speeds; mean speed diffusion within tracks) are each linear in the three
-    variances: each noise adds its variance to what the statistic measures, tracking noise and
-    detrending form the intercept. Four simulations (no noise, each noise at a probe level) give
-    the map; a non-negative least-squares solve gives the variances, so a noise that is absent
-    from the data comes out 0 rather than breaking the fit.
+    The four statistics of :func:`_noise_stats` (mean heading diffusion; pooled within-robot
+    variance of trial speeds; mean speed diffusion within tracks; pooled within-robot variance
+    of trial turn rates) are each linear in four variances: the three above and the
+    trial-to-trial bias spread, which only the turn rates see. Each noise adds its variance to
+    what a statistic measures; tracking noise and detrending form the intercept. Five
+    simulations (no noise, each noise at a probe level) give the map; a non-negative
+    least-squares solve, each row weighted by the statistic's sampling sd (the spread over the
+    simulations' replicates), gives the variances, so a noise that is absent from the data
+    comes out 0 rather than breaking the fit.
+
+    The turn-rate row is what keeps the heading noise honest under heavy tracking noise: the
+    diffusion statistic then scatters by more than the heading noise it measures (4 mm of
+    tracking noise on 2 s chords), while a robot's turn rate, a slope over the whole trial,
+    still varies from trial to trial by little more than the heading noise makes it. Since the
+    bias spread can only add to that variance, the row bounds the heading noise from above.
+    The bias spread fitted here is discarded (the base and the effects fit their own).
     """
     from scipy.optimize import nnls
 
     n = len(model.swarm)
     z = model.with_traits(sigma_omega=np.zeros(n), sigma_v=np.zeros(n), bias_trial_sd=np.zeros(n), speed_trial_sd=0.0)
-    pw, pv, ps = PROBE["sigma_omega"], PROBE["sigma_v"], PROBE["speed_trial_sd"]
-    s0 = np.nanmean(_noise_stats(resim(z)), axis=0)
-    s1 = np.nanmean(_noise_stats(resim(z.with_traits(sigma_omega=np.full(n, pw)))), axis=0)
-    s2 = np.nanmean(_noise_stats(resim(z.with_traits(sigma_v=np.full(n, pv)))), axis=0)
-    s3 = np.nanmean(_noise_stats(resim(z.with_traits(speed_trial_sd=ps))), axis=0)
-    A = np.column_stack([(s1 - s0) / pw**2, (s2 - s0) / pv**2, (s3 - s0) / ps**2])
-    target = _noise_stats(meas) - s0
-    # Scale rows so the statistics weigh alike (they differ by orders of magnitude).
-    w = 1.0 / np.maximum(np.abs(A).max(axis=1), 1e-30)
-    var, _ = nnls(A * w[:, None], target * w)
+    keys = ("sigma_omega", "sigma_v", "speed_trial_sd", "bias_trial_sd")
+    probes = [z] + [z.with_traits(**{k: PROBE[k] if k == "speed_trial_sd" else np.full(n, PROBE[k])}) for k in keys]
+    reps = [_noise_stats(resim(m)) for m in probes]  # (M, 4) each
+    s = [np.nanmean(r, axis=0) for r in reps]
+    A = np.column_stack([(s[j + 1] - s[0]) / PROBE[k] ** 2 for j, k in enumerate(keys)])
+    target = _noise_stats(meas) - s[0]
+    scale = np.abs(A).max(axis=1)
+
+    def solve(r):
+        # Each row weighted by its statistic's sampling sd at ``r``'s levels (the spread over
+        # its replicates; a statistic that does not scatter weighs as its map's largest entry).
+        with np.errstate(all="ignore"):
+            sd = np.nanstd(r, axis=0, ddof=1)
+        sd = np.where(np.isfinite(sd) & (sd > 1e-12 * scale), sd, np.maximum(scale, 1e-300))
+        return nnls(A / sd[:, None], target / sd)[0]
+
+    def levels(v):
+        return model.with_traits(sigma_omega=np.full(n, np.sqrt(v[0])), sigma_v=np.full(n, np.sqrt(v[1])),
+                                 speed_trial_sd=float(np.sqrt(v[2])), bias_trial_sd=np.full(n, np.sqrt(v[3])))
+
+    # A variance statistic scatters in proportion to its level: first weighted at no noise, then
+    # at the levels found (one more simulation).
+    var = solve(reps[0])
+    var = solve(_noise_stats(resim(levels(var))))
     return model.with_traits(sigma_omega=np.full(n, np.sqrt(var[0])), sigma_v=np.full(n, np.sqrt(var[1])),
                              speed_trial_sd=float(np.sqrt(var[2])))
 
@@ -367,17 +391,14 @@ class SpeedHeterogeneity(Effect):
 
 
 def _noise_stats(s):
-    """Three statistics, each linear in the noise variances, per replicate (leading axes): mean
+    """Four statistics, each linear in the noise variances, per replicate (leading axes): mean
     heading diffusion, pooled within-robot variance of the trial speeds (immune to per-robot
-    speed differences) and mean speed diffusion within tracks."""
+    speed differences), mean speed diffusion within tracks and pooled within-robot variance of
+    the trial turn rates (immune to per-robot biases)."""
     with np.errstate(all="ignore"):
         d = np.nanmean(s["diffusion"], axis=(-2, -1))
-        v = s["speed"]
-        dev = v - np.nanmean(v, axis=-2, keepdims=True)
-        dof = np.maximum((np.isfinite(v).sum(-2) - 1).sum(-1), 1)
-        w = np.nansum(dev**2, axis=(-2, -1)) / dof
         sd = np.nanmean(s["speed_diffusion"], axis=(-2, -1))
-    return np.stack([d, w, sd], axis=-1)
+    return np.stack([d, np.asarray(within_var(s["speed"])), sd, np.asarray(within_var(s["turn_rate"]))], axis=-1)
 
 
 class MotionNoise(Effect):
