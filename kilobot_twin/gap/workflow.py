@@ -376,36 +376,77 @@ def decide(scores: dict, resolves, rng: np.random.Generator, boot: int, library:
 
     1. the lower end of the 95 % bootstrap interval (over robots) of its gain over the current
        model is above 0,
-    2. the same holds for its gain over the runner-up: the best other candidate, except
-       candidates that merely extend the best (they contain it, so they fit at least as well in
-       sample; when they score lower held-out the simpler best is preferred); and
+    2. the same holds for its gain over the runner-up: the best other candidate that is a rival
+       explanation (:func:`_rivals`): not one that merely extends the best (it contains it, so
+       it fits at least as well in sample; when it scores lower held-out the simpler best is
+       preferred), nor one that predicts other summaries (it explains other data); and
     3. adding it resolves at least one flagged signal: ``resolves(name)`` returns the signals it
        removes (called only when 1 and 2 hold).
 
+    Nested models are judged by parsimony: when the best extends another candidate (contains it
+    as a special case) and does not beat it clearly (the lower end of the interval of its gain
+    over it is not above 0), the simpler model takes its place as the best, and the rule goes on
+    with it (the extension is then no rival of it).
+
     Returns best, order (best then the rivals, runner-up first), both intervals, ``clear`` (1
-    and 2), ``resolved`` and ``named``.
+    and 2), ``resolved``, ``named`` and ``simplified`` (the extensions set aside for the simpler
+    model they contain, with the interval of their gain over it).
     """
     library = E.LIBRARY if library is None else library
-    order = sorted(scores, key=lambda k: -np.nansum(scores[k]))
-    best = order[0]
+    by_sum = sorted(scores, key=lambda k: -np.nansum(scores[k]))
+    n = len(np.asarray(scores[by_sum[0]]))
+
+    def ci(x):
+        x = np.asarray(x, dtype=float)
+        return np.percentile(_boot(rng, lambda i: np.nansum(x[i]), n, boot), [2.5, 97.5])
+
+    best, simplified = by_sum[0], []
+    while best in library:
+        simpler = [k for k in library[best].extends if k in scores]
+        if not simpler:
+            break
+        # the best-scoring model it contains
+        s = max(simpler, key=lambda k: np.nansum(scores[k]))
+        ci_s = ci(np.asarray(scores[best], dtype=float) - np.asarray(scores[s], dtype=float))
+        if ci_s[0] > 0:
+            break
+        simplified.append({"name": best, "instead": s, "ci95": [float(x) for x in ci_s]})
+        best = s
     gain = np.asarray(scores[best], dtype=float)
-    n = len(gain)
-    ci_gain = np.percentile(_boot(rng, lambda i: np.nansum(gain[i]), n, boot), [2.5, 97.5])
-    rivals = [k for k in order[1:] if k not in library or best not in library[k].extends]
+    ci_gain = ci(gain)
+    rivals = [k for k in by_sum if k != best and _rivals(library, best, k)]
     order = [best] + rivals
-    if rivals:
-        diff = gain - np.asarray(scores[rivals[0]], dtype=float)
-        ci_diff = np.percentile(_boot(rng, lambda i: np.nansum(diff[i]), n, boot), [2.5, 97.5])
-    else:
-        ci_diff = np.array([np.inf, np.inf])
+    ci_diff = ci(gain - np.asarray(scores[rivals[0]], dtype=float)) if rivals else np.array([np.inf, np.inf])
     clear = bool(ci_gain[0] > 0 and ci_diff[0] > 0)
     resolved = list(resolves(best)) if clear else []
-    skipped = [k for k in sorted(scores, key=lambda k: -np.nansum(scores[k]))[1:] if k not in rivals]
-    why = ("the best-scoring other candidate" + (f"; {', '.join(skipped)} skipped: it extends {best} (contains it "
-                                                 "as a special case), so it cannot be a rival to a simpler model it contains"
-                                                 if skipped else "") if rivals else "no other candidate")
+    extending = [k for k in by_sum if k != best and k in library and best in library[k].extends]
+    apart = [k for k in by_sum if k != best and k not in rivals and k not in extending]
+    why = "the best-scoring other candidate" if rivals else "no other candidate"
+    if extending:
+        why += (f"; {', '.join(extending)} skipped: it extends {best} (contains it as a special case), so it cannot be "
+                "a rival to a simpler model it contains")
+    if apart:
+        why += (f"; {', '.join(apart)} skipped: it predicts other summaries than {best} does, so it is no other "
+                "explanation of the same data (it may be named in a later step)")
+    if simplified:
+        why += "; " + "; ".join(f"{x['name']} scored higher but does not beat {x['instead']}, which it contains, clearly "
+                                f"(gain over it, 95 % CI {x['ci95'][0]:.1f} .. {x['ci95'][1]:.1f}): the simpler model is preferred"
+                                for x in simplified)
     return {"best": best, "order": order, "ci_gain": ci_gain, "ci_diff": ci_diff, "clear": clear,
-            "resolved": resolved, "named": clear and bool(resolved), "runner_up_reason": why}
+            "resolved": resolved, "named": clear and bool(resolved), "runner_up_reason": why, "simplified": simplified}
+
+
+def _rivals(library: dict, best: str, other: str) -> bool:
+    """Whether ``other`` is a rival explanation to ``best``: it does not merely extend ``best``,
+    and the two predict at least one summary in common (candidates that predict disjoint
+    summaries, such as per-robot speeds and per-robot turn rates, explain different data and
+    are named one after the other, not against each other). Candidates outside the library
+    are always rivals."""
+    if best not in library or other not in library:
+        return True
+    if best in library[other].extends:
+        return False
+    return bool(set(library[best].predicts) & set(library[other].predicts))
 
 
 def _boot(rng, values_fn, n, B):

@@ -56,12 +56,44 @@ def test_an_extension_of_the_best_is_not_its_runner_up_but_the_best_extension_mu
     hb = np.full(N, 4.0) + np.linspace(-0.5, 0.5, N)
     scores = {"heading_bias": hb, "bias_drift": hb - 0.01, "speed_heterogeneity": np.zeros(N)}
     d = decide(scores, lambda n: ["turn_rate:between_robots"], _rng(), 500)
-    assert d["order"][1] == "speed_heterogeneity" and d["named"]
-    # When the extension is best, the model it extends is a rival it must beat clearly.
+    assert d["order"] == ["heading_bias"] and d["named"]  # (speed_heterogeneity predicts other summaries)
+    assert "bias_drift skipped: it extends heading_bias" in d["runner_up_reason"]
+    # When the extension is best but not clearly better than the model it contains, the simpler
+    # model is preferred (parsimony) and named, if it is clear against the rest.
     wiggle = np.tile([0.3, -0.28], N // 2)  # sums to +0.12: ahead, but not clearly
     scores = {"bias_drift": hb + wiggle, "heading_bias": hb, "speed_heterogeneity": np.zeros(N)}
-    d = decide(scores, _never, _rng(), 500)
-    assert d["order"][1] == "heading_bias" and not d["named"]
+    d = decide(scores, lambda n: ["turn_rate:between_robots"], _rng(), 500)
+    assert d["best"] == "heading_bias" and d["order"] == ["heading_bias"] and d["named"]
+    assert d["simplified"][0]["name"] == "bias_drift" and d["simplified"][0]["ci95"][0] <= 0
+    # ... and the extension that does beat it clearly is the best, with it as its runner-up.
+    scores = {"bias_drift": hb + 1.0, "heading_bias": hb, "speed_heterogeneity": np.zeros(N)}
+    d = decide(scores, lambda n: ["turn_rate:trial_trend"], _rng(), 500)
+    assert d["best"] == "bias_drift" and d["order"][1] == "heading_bias" and d["named"] and not d["simplified"]
+
+
+def test_rivals_are_candidates_that_predict_the_same_summaries():
+    """Two effects in the data, each flagged in its own summary: per-robot speeds and per-robot
+    turn rates. The speed effect scores higher, but by an amount that varies a lot from robot
+    to robot, so it does not beat the turn-rate effect clearly; that does not matter, since the
+    two explain different data (they are named one after the other). An effect of the user's
+    own that predicts turn rates too is a rival, and must be beaten clearly."""
+    from kilobot_twin.gap import effects as E
+
+    rng = np.random.default_rng(2)
+    speed = 12.0 + rng.normal(0, 15, N)
+    hb = 8.0 + rng.normal(0, 1, N)
+    scores = {"speed_heterogeneity": speed, "heading_bias": hb}
+    d = decide(scores, lambda n: ["speed:between_robots"], _rng(), 1000)
+    assert d["best"] == "speed_heterogeneity" and d["order"] == ["speed_heterogeneity"] and d["named"]
+    assert "heading_bias skipped: it predicts other summaries" in d["runner_up_reason"]
+
+    class Slip(E.HeadingBias):
+        name, predicts = "wheel_slip", {"speed": "mean", "turn_rate": "mean"}
+
+    library = {**E.LIBRARY, "wheel_slip": Slip()}
+    scores = {"speed_heterogeneity": speed, "wheel_slip": hb}
+    d = decide(scores, _never, _rng(), 1000, library)
+    assert d["order"] == ["speed_heterogeneity", "wheel_slip"] and d["ci_diff"][0] < 0 and not d["named"]
 
 
 def test_a_clear_winner_that_resolves_nothing_is_not_named():
