@@ -35,11 +35,15 @@ class TwinModel:
     #: :func:`partial_pool`); a summary predicted by a line per robot also has ``slope_pooling``
     pooling: dict = field(default_factory=dict)
     slope_pooling: dict = field(default_factory=dict)
+    #: how the base's noise fit maps noise to summaries (:func:`fit_noise_levels`):
+    #: ``diffusion_per_var`` (the diffusion summary per unit of sigma_omega^2) and
+    #: ``diffusion_within_var0`` (the within-robot variance of the diffusion without heading noise)
+    noise_map: dict = field(default_factory=dict)
 
     def with_traits(self, speed_trial_sd: float | None = None, **arrays) -> "TwinModel":
         sts = self.speed_trial_sd if speed_trial_sd is None else float(speed_trial_sd)
         return TwinModel(self.kind, self.swarm.with_values(**arrays), list(self.named), sts, dict(self.pooling),
-                         dict(self.slope_pooling))
+                         dict(self.slope_pooling), dict(self.noise_map))
 
     def pooled(self, summary: str, w, w_slope=None) -> "TwinModel":
         """The same model, noting how much its per-robot estimates for ``summary`` were pooled."""
@@ -274,7 +278,8 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     z = model.with_traits(sigma_omega=np.zeros(n), sigma_v=np.zeros(n), bias_trial_sd=np.zeros(n), speed_trial_sd=0.0)
     keys = ("sigma_omega", "sigma_v", "speed_trial_sd", "bias_trial_sd")
     probes = [z] + [z.with_traits(**{k: PROBE[k] if k == "speed_trial_sd" else np.full(n, PROBE[k])}) for k in keys]
-    reps = [_noise_stats(resim(m)) for m in probes]  # (M, 4) each
+    sims = [resim(m) for m in probes]
+    reps = [_noise_stats(r) for r in sims]  # (M, 4) each
     s = [np.nanmean(r, axis=0) for r in reps]
     A = np.column_stack([(s[j + 1] - s[0]) / PROBE[k] ** 2 for j, k in enumerate(keys)])
     target = _noise_stats(meas) - s[0]
@@ -296,8 +301,11 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     # at the levels found (one more simulation).
     var = solve(reps[0])
     var = solve(_noise_stats(resim(levels(var))))
-    return model.with_traits(sigma_omega=np.full(n, np.sqrt(var[0])), sigma_v=np.full(n, np.sqrt(var[1])),
-                             speed_trial_sd=float(np.sqrt(var[2])))
+    m = model.with_traits(sigma_omega=np.full(n, np.sqrt(var[0])), sigma_v=np.full(n, np.sqrt(var[1])),
+                          speed_trial_sd=float(np.sqrt(var[2])))
+    m.noise_map = {"diffusion_per_var": float(A[0, 0]),
+                   "diffusion_within_var0": float(np.nanmean(within_var(sims[0]["diffusion"])))}
+    return m
 
 
 # --- named effects ---------------------------------------------------------------------------------

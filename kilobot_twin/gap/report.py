@@ -32,9 +32,10 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
                   "|---|---|---|---|---|---|"]
         for i, st in enumerate(s["steps"]):
             sc, ru = st["score_vs_current"], st["runner_up"]
+            over = ("-" if ru["name"] is None else
+                    f"{ru['loglik_gain_over_it']:.1f} ({ru['ci95'][0]:.1f} .. {ru['ci95'][1]:.1f})")
             lines.append(f"| {i + 1} | {st['name']} | {sc['loglik_gain']:.1f} ({sc['ci95'][0]:.1f} .. {sc['ci95'][1]:.1f}) | "
-                         f"{ru['name']} | {ru['loglik_gain_over_it'] if ru['loglik_gain_over_it'] is None else round(ru['loglik_gain_over_it'], 1)} "
-                         f"({ru['ci95'][0]:.1f} .. {ru['ci95'][1]:.1f}) | {st['gap_after']:.2f} |")
+                         f"{ru['name'] or 'none'} | {over} | {st['gap_after']:.2f} |")
         for i, st in enumerate(s["steps"]):
             if st["runner_up"].get("why_this_one"):
                 lines.append(f"\nStep {i + 1}: the runner-up shown is {st['runner_up']['why_this_one']}.")

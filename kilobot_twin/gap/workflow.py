@@ -481,7 +481,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
             null = simulate(cond, model, gs.m_null, child_seed(gs.seed, "null", round_))
         found = detect(kind, meas, null, cond.trials, gs.alpha)
         if round_ == 0:
-            mde = minimum_detectable(kind, meas, null, cond.trials, gs.alpha, seed=child_seed(gs.seed, "power"))
+            mde = minimum_detectable(kind, meas, null, cond.trials, gs.alpha, seed=child_seed(gs.seed, "power"), base=model)
         flagged = [f for f in found if f["flagged"]]
         for f in flagged:
             disagreements.append({"round": round_, "signal": f["signal"], "robots": [int(cond.robot_ids[i]) for i in f["robots"]],
@@ -525,7 +525,8 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
             "score_vs_current": {"loglik_gain": float(np.nansum(gain)), "ci95": [float(x) for x in ci_gain]},
             "runner_up": {"name": order[1] if len(order) > 1 else None,
                           "loglik_gain_over_it": float(np.nansum(gain - scores[order[1]])) if len(order) > 1 else None,
-                          "ci95": [float(x) for x in ci_diff], "why_this_one": d["runner_up_reason"]},
+                          "ci95": [float(x) for x in ci_diff] if len(order) > 1 else None,
+                          "why_this_one": d["runner_up_reason"]},
             "scores": {k: float(np.nansum(v)) for k, v in scores.items()},
             "signals": [f["signal"] for f in flagged],
             "resolved": resolved,
@@ -585,13 +586,15 @@ _MDE_OF = {"motion": {"heading_bias": ("turn_rate", "sd of the per-robot turn ra
            "blink": {"clock_drift": ("toggle_rate", "relative sd of the per-robot clock rate")}}
 
 
+_NOISE_UNIT = "sd over robots of the heading-noise variance sigma_omega^2, rad^2/s"
+
 #: Effects whose spread the base model takes in as trial-to-trial spread (Eq. 4: identical robots,
 #: all of the spread beyond measurement is per trial), so that the base predicts them wider.
 _BASE_ABSORBS = {"heading_bias", "bias_drift", "clock_drift"}
 
 
 def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: float, power: float = 0.8,
-                       seed: int = 0) -> dict:
+                       seed: int = 0, base: E.TwinModel | None = None) -> dict:
     """The smallest between-robot spread of each effect that this dataset (its robots, trials,
     gaps, noise) would have named with ``power``: ``size``, and ``detection_size``, the smallest
     the detection step alone flags with ``power``.
@@ -609,6 +612,12 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
     (:func:`naming_power`): the data's gaps and within-robot variance, robots differing by tau,
     detection against the null's spread, and the leave-one-trial-out likelihood of the effect's
     pooled per-robot estimates against the base, with the bootstrap over robots of the rule.
+
+    Robots that differ in noise (``motion_noise``) differ in a variance: the emulation draws
+    their intensities lognormal around the ``base`` model's and lets the noisier robots' summaries
+    scatter more (:func:`naming_power`), and the size is stated in the twin's units, the sd over
+    robots of sigma_omega^2, through the base fit's map from sigma_omega^2 to the diffusion
+    summary (``base.noise_map``; without a base, in the summary's units).
     """
     from scipy.stats import norm
 
@@ -641,9 +650,16 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             tau_det = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
             level = float(np.nanmean(x))
         taus = tau_det * np.geomspace(0.7, 16.0, 20)
-        pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0, seed=seed)
+        noise, scale = None, (1.0 if comp == "turn_rate" else 1.0 / abs(level))
+        if effect == "motion_noise":
+            per_var = (base.noise_map.get("diffusion_per_var") if base is not None else None) or 1.0
+            var0 = base.noise_map.get("diffusion_within_var0", 0.0) if base is not None else 0.0
+            lvl = per_var * float(np.mean(base.swarm.sigma_omega**2)) if base is not None else level
+            if lvl > 0:
+                noise = (lvl, float(np.clip(1.0 - var0 / max(s_w2, 1e-300), 0.0, 1.0)))
+            scale, unit = 1.0 / per_var, _NOISE_UNIT if base is not None and base.noise_map else unit
+        pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0, seed=seed, noise=noise)
         tau = _first_crossing(taus, pw, power)
-        scale = 1.0 if comp in ("turn_rate", "diffusion") else 1.0 / abs(level)
         # None: not named with that power even at 16x the detection size (too few robots).
         named = tau * scale if np.isfinite(tau) else None
         out[effect] = {"size": named, "detection_size": tau_det * scale, "unit": unit}
@@ -666,7 +682,7 @@ def _first_crossing(x, y, level):
 
 
 def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, threshold: float, reps: int = 200,
-                 boot: int = 200, seed: int = 0) -> np.ndarray:
+                 boot: int = 200, seed: int = 0, noise: tuple | None = None) -> np.ndarray:
     """Probability that a between-robot effect of spread ``tau`` (each of ``taus``) is flagged
     and named, by emulation in summary space: per replicate, each robot's trial summaries are
     its own level (sd tau; a drift: its own slope over trials, sd tau) plus within-robot noise
@@ -676,7 +692,15 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     effect's pooled per-robot estimates (:func:`effects.partial_pool`, with their predictive
     variance) over the base (a population level; its spread the within-robot one, or the whole
     spread where ``base_absorbs``) is above 0; a drift must also beat a robot's mean, its rival.
-    Common random numbers across ``taus``, so the curve is smooth in tau."""
+    Common random numbers across ``taus``, so the curve is smooth in tau.
+
+    ``noise = (level, f)``: robots that differ in a noise intensity (a variance, never negative).
+    Their noise's share of the summary, ``level`` at the population's intensity, scales by
+    r_i = exp(s z_i - s^2 / 2), lognormal with mean 1 and sd tau / level; the share ``f`` of the
+    within-robot variance that the noise makes scales by r_i^2 (the rest, tracking, does not).
+    The effect's predictive variance is then each robot's own at its fitted ratio, shrunk
+    halfway to the pooled one, as :func:`_heldout` does with simulations; the base's is the
+    population's, ``s_w2``."""
     rng = np.random.default_rng(seed)
     K, N = seen.shape
     eps = rng.normal(0.0, np.sqrt(s_w2), (reps, K, N))
@@ -689,9 +713,15 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     null_mean = float(np.nanmean(stat(eps)))
     out = []
     for tau in taus:
-        x = eps + tau * effect
+        if noise is None:
+            x = eps + tau * effect
+        else:
+            level, f = noise
+            sig = np.sqrt(np.log1p((tau / level) ** 2))
+            r = np.exp(sig * effect - 0.5 * sig**2)
+            x = level * (r - 1) + eps * np.sqrt(1 - f + f * r**2)
         flagged = stat(x) - null_mean > threshold
-        gain, rival = _heldout_gain(x, drift, base_absorbs)
+        gain, rival = _heldout_gain(x, drift, base_absorbs, noise=None if noise is None else (*noise, s_w2))
         lo = np.percentile(gain[:, idx].sum(-1), 2.5, axis=1)
         named = flagged & (lo > 0)
         if drift:
@@ -700,10 +730,11 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     return np.array(out)
 
 
-def _heldout_gain(x, drift: bool, base_absorbs: bool):
+def _heldout_gain(x, drift: bool, base_absorbs: bool, noise: tuple | None = None):
     """Leave-one-trial-out log-likelihood gain per (replicate, robot) of pooled per-robot means
     (or lines, with ``drift``) over a population level; for a drift also the gain of the means
-    (its rival). x: (R, K, N)."""
+    (its rival). x: (R, K, N). ``noise = (level, f, s_w2)``: per-robot noise intensities (see
+    :func:`naming_power`)."""
     R, K, N = x.shape
 
     def loglik(y, mu, var):
@@ -722,8 +753,16 @@ def _heldout_gain(x, drift: bool, base_absorbs: bool):
             mu = np.nanmean(tr, axis=(1, 2))[:, None]
             within = E.within_var(tr)
             spread = np.nanvar(tr, axis=(1, 2)) if base_absorbs else within
-            base = loglik(y, mu, spread[:, None] * (1 + 1 / n_all))
             mean, w = E.partial_pool(tr)
+            if noise is not None:
+                level, f, s_w2 = noise
+                base = loglik(y, mu, s_w2 * (1 + 1 / n_all))
+                r_hat = np.maximum(1 + mean / level, 0.0)
+                var_i = s_w2 * (1 - f + f * r_hat**2)
+                var_i = 0.5 * var_i + 0.5 * var_i.mean(-1, keepdims=True)
+                gain += loglik(y, mean, var_i * (1 + w / np.maximum(n, 1))) - base
+                continue
+            base = loglik(y, mu, spread[:, None] * (1 + 1 / n_all))
             mean_ll = loglik(y, mean, within[:, None] * (1 + w / np.maximum(n, 1)))
             if not drift:
                 gain += mean_ll - base

@@ -43,7 +43,11 @@ def test_heading_bias_named_recovered_and_gap_shrinks(tmp_path):
         assert k in doc
     assert set(doc["gap_before"]) == {"metric", "value", "ci95"}
     step = doc["steps"][0]
-    assert step["name"] == "heading_bias" and step["runner_up"]["name"] and "gap_after" in step
+    # No rival explanation of turn rates besides bias_drift, which contains heading_bias: the
+    # report says so instead of showing a runner-up (and writes no Infinity into the JSON).
+    assert step["name"] == "heading_bias" and step["runner_up"]["name"] is None and "gap_after" in step
+    assert "bias_drift skipped: it extends heading_bias" in step["runner_up"]["why_this_one"]
+    assert "Infinity" not in (tmp_path / "out" / "report.json").read_text()
     assert (tmp_path / "out" / "report.md").is_file() and (tmp_path / "out" / "gap_0.png").is_file()
 
 
