@@ -255,22 +255,23 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     sigma_omega, speed-noise intensity sigma_v (within a trial) and the relative trial-to-trial
     speed jitter.
 
-    The four statistics of :func:`_noise_stats` (mean heading diffusion; pooled within-robot
-    variance of trial speeds; mean speed diffusion within tracks; pooled within-robot variance
-    of trial turn rates) are each linear in four variances: the three above and the
-    trial-to-trial bias spread, which only the turn rates see. Each noise adds its variance to
-    what a statistic measures; tracking noise and detrending form the intercept. Five
-    simulations (no noise, each noise at a probe level) give the map; a non-negative
-    least-squares solve, each row weighted by the statistic's sampling sd (the spread over the
-    simulations' replicates), gives the variances, so a noise that is absent from the data
-    comes out 0 rather than breaking the fit.
+    Three statistics of :func:`_noise_stats` (mean heading diffusion; pooled within-robot
+    variance of trial speeds; mean speed diffusion within tracks) are each linear in the three
+    variances: each noise adds its variance to what the statistic measures, tracking noise and
+    detrending form the intercept. Four simulations (no noise, each noise at a probe level) give
+    the map; a non-negative least-squares solve (rows scaled alike) gives the variances, so a
+    noise that is absent from the data comes out 0 rather than breaking the fit.
 
-    The turn-rate row is what keeps the heading noise honest under heavy tracking noise: the
-    diffusion statistic then scatters by more than the heading noise it measures (4 mm of
-    tracking noise on 2 s chords), while a robot's turn rate, a slope over the whole trial,
-    still varies from trial to trial by little more than the heading noise makes it. Since the
-    bias spread can only add to that variance, the row bounds the heading noise from above.
-    The bias spread fitted here is discarded (the base and the effects fit their own).
+    The fourth statistic, the pooled within-robot variance of trial turn rates, bounds the
+    heading noise from above: under heavy tracking noise the diffusion scatters by more than the
+    heading noise it measures (4 mm of tracking noise on 2 s chords), while a robot's turn rate,
+    a slope over the whole trial, still varies from trial to trial by little more than the
+    heading noise makes it, and the trial-to-trial bias spread can only add to that. When the
+    heading noise found exceeds what the data's turn rates allow (their variance plus two of its
+    sampling sds, less what the speed noises add), it is set to that bound and the speed noises
+    are solved again from their own two rows. (The bound is not a row of the
+    least-squares solve: weighted by their sampling sds, rows whose intercept another world does
+    not share, such as a speed diffusion 7 sd below the twin's noiseless one, would dominate it.)
     """
     from scipy.optimize import nnls
 
@@ -283,24 +284,28 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     s = [np.nanmean(r, axis=0) for r in reps]
     A = np.column_stack([(s[j + 1] - s[0]) / PROBE[k] ** 2 for j, k in enumerate(keys)])
     target = _noise_stats(meas) - s[0]
-    scale = np.abs(A).max(axis=1)
+    # Rows 0-2 (diffusion, speed variance, speed diffusion) in the three noise variances, scaled
+    # so the statistics weigh alike (they differ by orders of magnitude).
+    A3, t3 = A[:3, :3], target[:3]
+    w = 1.0 / np.maximum(np.abs(A3).max(axis=1), 1e-30)
+    var = nnls(A3 * w[:, None], t3 * w)[0]
+    # The turn rates' bound on the heading noise: their variance plus two of its sampling sds
+    # (a variance scatters in proportion to its level: the sd is taken without heading noise,
+    # then again at the bound so found, one more simulation), less what the speed noises add.
+    if A[3, 0] > 0:
+        def bound(sd):
+            return max((target[3] + 2.0 * sd - A[3, 1] * var[1] - A[3, 2] * var[2]) / A[3, 0], 0.0)
 
-    def solve(r):
-        # Each row weighted by its statistic's sampling sd at ``r``'s levels (the spread over
-        # its replicates; a statistic that does not scatter weighs as its map's largest entry).
         with np.errstate(all="ignore"):
-            sd = np.nanstd(r, axis=0, ddof=1)
-        sd = np.where(np.isfinite(sd) & (sd > 1e-12 * scale), sd, np.maximum(scale, 1e-300))
-        return nnls(A / sd[:, None], target / sd)[0]
-
-    def levels(v):
-        return model.with_traits(sigma_omega=np.full(n, np.sqrt(v[0])), sigma_v=np.full(n, np.sqrt(v[1])),
-                                 speed_trial_sd=float(np.sqrt(v[2])), bias_trial_sd=np.full(n, np.sqrt(v[3])))
-
-    # A variance statistic scatters in proportion to its level: first weighted at no noise, then
-    # at the levels found (one more simulation).
-    var = solve(reps[0])
-    var = solve(_noise_stats(resim(levels(var))))
+            b = bound(float(np.nanstd(reps[0][:, 3], ddof=1)))
+            at = model.with_traits(sigma_omega=np.full(n, np.sqrt(b)), sigma_v=np.full(n, np.sqrt(var[1])),
+                                   speed_trial_sd=float(np.sqrt(var[2])), bias_trial_sd=np.zeros(n))
+            sd = float(np.nanstd(_noise_stats(resim(at))[:, 3], ddof=1))
+        b = bound(sd) if np.isfinite(sd) else np.inf
+        if var[0] > b:
+            # The speed noises again from their own rows (the diffusion's excess is not theirs).
+            rest = nnls(A3[1:, 1:] * w[1:, None], (t3[1:] - A3[1:, 0] * b) * w[1:])[0]
+            var = np.array([b, *rest])
     m = model.with_traits(sigma_omega=np.full(n, np.sqrt(var[0])), sigma_v=np.full(n, np.sqrt(var[1])),
                           speed_trial_sd=float(np.sqrt(var[2])))
     m.noise_map = {"diffusion_per_var": float(A[0, 0]),
