@@ -13,33 +13,31 @@ def _conditions(n=12, trials=4, duration=60.0, dt=0.1):
     return Conditions("motion", np.arange(n), trials, duration, dt, np.ones((trials, n, T), bool), start)
 
 
-KEYS = ("sigma_omega", "sigma_v", "speed_trial_sd", "bias_trial_sd")
-
-
 def _variances(m):
-    return np.array([m.swarm.sigma_omega[0] ** 2, m.swarm.sigma_v[0] ** 2, m.speed_trial_sd ** 2, m.swarm.bias_trial_sd[0] ** 2])
+    return np.array([m.swarm.sigma_omega[0] ** 2, m.swarm.sigma_v[0] ** 2, m.speed_trial_sd ** 2])
 
 
 def _check(truth_model, cond, seed):
     """Fit the noise levels of one simulated dataset of ``truth_model`` and return (fitted
     variances, true variances, their 4-sd tolerances) of heading noise, speed noise and trial
-    speed jitter. The tolerance propagates the replicate covariance of the four statistics
-    (from 20 more datasets of the truth) through the linear map (probes simulated here, one
-    at a time), the way an unconstrained estimate would be computed."""
+    speed jitter. The tolerance propagates the replicate covariance of the three statistics
+    the fit solves for them (from 20 more datasets of the truth) through the linear map
+    (probes simulated here, one at a time), the way the estimate itself is computed when the
+    turn rates' bound does not bind."""
     nominal = E.nominal_model("motion", cond.robot_ids)
     n = len(cond.robot_ids)
     meas = {k: v[0] for k, v in simulate(cond, truth_model, 1, seed=seed).items()}
     calls = iter(range(100))
     fitted = E.fit_noise_levels(nominal, meas, lambda m: simulate(cond, m, 20, seed=1000 + next(calls)))
-    stats = E._noise_stats(simulate(cond, truth_model, 20, seed=seed + 1))  # (20, 4)
+    stats = E._noise_stats(simulate(cond, truth_model, 20, seed=seed + 1))[:, :3]  # (20, 3)
     z = nominal.with_traits(sigma_omega=np.zeros(n), sigma_v=np.zeros(n), bias_trial_sd=np.zeros(n))
     probes = [z.with_traits(sigma_omega=np.full(n, 0.02)), z.with_traits(sigma_v=np.full(n, 0.001)),
-              z.with_traits(speed_trial_sd=0.03), z.with_traits(bias_trial_sd=np.full(n, 0.02))]
-    s = [np.nanmean(E._noise_stats(simulate(cond, m, 20, seed=2000 + j)), axis=0) for j, m in enumerate([z] + probes)]
+              z.with_traits(speed_trial_sd=0.03)]
+    s = [np.nanmean(E._noise_stats(simulate(cond, m, 20, seed=2000 + j))[:, :3], axis=0) for j, m in enumerate([z] + probes)]
     A = np.column_stack([(s[j + 1] - s[0]) / (_variances(p) - _variances(z))[j] for j, p in enumerate(probes)])
     Ai = np.linalg.inv(A)
     sd = np.sqrt(np.diag(Ai @ np.cov(stats.T) @ Ai.T))
-    return _variances(fitted)[:3], _variances(truth_model)[:3], 4 * sd[:3]
+    return _variances(fitted), _variances(truth_model), 4 * sd
 
 
 def test_noise_levels_are_fitted_separately():
