@@ -429,12 +429,19 @@ class SpeedHeterogeneity(Effect):
         speed, w = partial_pool(meas["speed"])
         ratio = speed / _nanmean(ref["speed"], axis=(0, 1))
         m = model.with_traits(speed_factor=model.swarm.speed_factor * ratio).pooled("speed", w)
-        for _ in range(iterations if resim is not None else 0):
-            sim = _nanmean(resim(m)["speed"], axis=(0, 1))
-            ok = np.isfinite(speed) & np.isfinite(sim) & (sim > 0)
-            m = m.with_traits(speed_factor=np.where(ok, m.swarm.speed_factor * speed / np.where(ok, sim, 1.0),
-                                                    m.swarm.speed_factor))
-        return m
+        return _own_fixed_point(m, "speed_factor", "speed", speed, resim, iterations)
+
+
+def _own_fixed_point(m: TwinModel, trait: str, summary: str, target, resim, iterations: int) -> TwinModel:
+    """Fixed-point steps of a per-robot trait that scales a summary, against each robot's own
+    simulation: trait_i *= target_i / simulated_i (where both are finite and positive), for a
+    summary that is not quite proportional to its trait. No steps without ``resim``."""
+    for _ in range(iterations if resim is not None else 0):
+        sim = _nanmean(resim(m)[summary], axis=(0, 1))
+        ok = np.isfinite(target) & np.isfinite(sim) & (sim > 0)
+        cur = m.swarm.values[trait]
+        m = m.with_traits(**{trait: np.where(ok, cur * target / np.where(ok, sim, 1.0), cur)})
+    return m
 
 
 def _noise_stats(s):
@@ -523,11 +530,7 @@ class ClockDrift(Effect):
         spread = max(within_var(rel) - _est_var_rel(ref, model, resim), 0.0)
         n = len(model.swarm)
         m = model.with_traits(clock_rate=c, clock_trial_sd=np.full(n, np.sqrt(spread))).pooled("toggle_rate", w)
-        for _ in range(iterations if resim is not None else 0):
-            sim = _nanmean(resim(m)["toggle_rate"], axis=(0, 1))
-            ok = np.isfinite(rate) & np.isfinite(sim) & (sim > 0)
-            m = m.with_traits(clock_rate=np.where(ok, m.swarm.clock_rate * rate / np.where(ok, sim, 1.0), m.swarm.clock_rate))
-        return m
+        return _own_fixed_point(m, "clock_rate", "toggle_rate", rate, resim, iterations)
 
 
 #: What :func:`fit_base` estimates from the data, per kind (population levels only).

@@ -652,12 +652,14 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         taus = tau_det * np.geomspace(0.7, 16.0, 20)
         noise, scale = None, (1.0 if comp == "turn_rate" else 1.0 / abs(level))
         if effect == "motion_noise":
-            per_var = (base.noise_map.get("diffusion_per_var") if base is not None else None) or 1.0
-            var0 = base.noise_map.get("diffusion_within_var0", 0.0) if base is not None else 0.0
-            lvl = per_var * float(np.mean(base.swarm.sigma_omega**2)) if base is not None else level
+            # Without the base fit's map (no base, or a base given by the user), in the summary's units.
+            nm = base.noise_map if base is not None else {}
+            nm = nm if nm.get("diffusion_per_var", 0.0) > 0 else {}  # a map that sees no heading noise
+            per_var = nm.get("diffusion_per_var", 1.0)
+            lvl = per_var * float(np.mean(base.swarm.sigma_omega**2)) if nm else level
             if lvl > 0:
-                noise = (lvl, float(np.clip(1.0 - var0 / max(s_w2, 1e-300), 0.0, 1.0)))
-            scale, unit = 1.0 / per_var, _NOISE_UNIT if base is not None and base.noise_map else unit
+                noise = (lvl, float(np.clip(1.0 - nm.get("diffusion_within_var0", 0.0) / max(s_w2, 1e-300), 0.0, 1.0)))
+            scale, unit = 1.0 / per_var, (_NOISE_UNIT if nm else unit)
         pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0, seed=seed, noise=noise)
         tau = _first_crossing(taus, pw, power)
         # None: not named with that power even at 16x the detection size (too few robots).
