@@ -5,7 +5,10 @@ Parameters: ``out`` (bag directory, default ``bags/<UTC time>``), ``topics`` (co
 prefixes, default ``/kilobot_,/swarm,/world,/analysis,/clock``), ``discovery_period_s`` (how often
 the graph is searched for new topics), ``chunk_bytes``, ``compression`` (zstd, lz4, none),
 ``ack_every`` (``~/recorded`` is published every this many robot messages and at 20 Hz when it
-changed). Subscriptions are raw (the bytes received are written as they are); transient-local
+changed), ``bundles`` (default true: the robots of a batched ``swarm`` process are written from
+its ``bundle``, one message per step holding the bytes each robot published on its own topics,
+instead of through one subscription per robot and topic; false: every robot topic is subscribed).
+Subscriptions are raw (the bytes received are written as they are); transient-local
 publishers are subscribed transient-local, so that their one message is recorded even if it
 was published before the recorder joined. ``metadata.yaml`` is written on shutdown.
 """
@@ -14,25 +17,31 @@ from __future__ import annotations
 
 import importlib
 import json
+import struct
 import time
 from datetime import datetime, timezone
 
+import numpy as np
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from std_msgs.msg import String, UInt64
+from std_msgs.msg import String, UInt8MultiArray, UInt64
 
 from .. import __version__
 from ..outputs import check_out_dir
 from ..errors import ConfigError
 from ..ros import params, qos
 from ..recording.bag import DEFAULT_CHUNK_BYTES, BagWriter
-from ..recording.topics import (BEST_EFFORT, RELIABLE, ROBOT_DATA, TRANSIENT_LOCAL, VOLATILE, parse_robot_topic,
-                                 qos_yaml)
+from ..recording.cdr import read_bundle, stamp_ns
+from ..recording.topics import (BEST_EFFORT, DATA_QOS, RELIABLE, ROBOT_DATA, ROBOT_TYPES, SWARM_BUNDLE,
+                                 SWARM_MEMBERS_TOPIC, TRANSIENT_LOCAL, VOLATILE, parse_robot_topic, qos_yaml,
+                                 robot_namespace, swarm_bundle_topic)
 from ..ros.executors import run_node
 
 PROG = "kilobot-twin recorder"
-#: Robot data topics: what the recorder acknowledges on ``~/recorded`` (the world's back-pressure).
+#: Longest wait (s) for a swarm's member list before the robot topics of the graph are subscribed
+#: one by one (the member list is latched and arrives within milliseconds of its discovery).
+MEMBERS_WAIT_S = 5.0
 
 
 def message_class(type_name: str):
@@ -66,6 +75,16 @@ class RecorderNode(Node):
         self.robot_messages = 0
         self._acked = 0
         self.pub_recorded = self.create_publisher(UInt64, "~/recorded", qos.CLOCK)
+        # Bundles: robots of a batched swarm are written from their swarm's bundle. A robot's own
+        # data subscriptions (taken before its swarm's member list arrived) are dropped then; what
+        # they wrote last marks where the bundle takes over (nothing written twice or lost).
+        self.bundles = bool(params.declare(self, "bundles", True))
+        self.covered: dict[int, str] = {}              # robot id -> swarm topic base
+        self._members_pending: dict[str, float] = {}   # members topic subscribed, not heard -> since
+        self._robot_subs: dict[int, list] = {}         # robot id -> its data subscriptions
+        self._last: dict[tuple[int, str], bytes] = {}  # (robot, kind) -> last message written from its topic
+        self._handover: dict[tuple[int, str], int] = {}  # (robot, kind) -> bundle items up to this stamp are in
+        self._bundle_cids: dict[tuple[str, bytes], np.ndarray] = {}
         self.create_timer(0.05, self._ack)
         self.create_timer(period, self.discover)
         self.discover()
@@ -76,9 +95,24 @@ class RecorderNode(Node):
         return any(topic.startswith(p) for p in self.prefixes)
 
     def discover(self) -> None:
-        for topic, types in self.get_topic_names_and_types():
+        graph = self.get_topic_names_and_types()
+        if self.bundles:
+            for topic, _types in graph:
+                m = SWARM_MEMBERS_TOPIC.match(topic)
+                if m and topic not in self._members_pending:
+                    self._members_pending[topic] = time.monotonic()
+                    self.create_subscription(String, topic, lambda msg, base=m.group(1), t=topic:
+                                             self._on_members(base, t, msg), qos.LATCHED)
+        waiting = any(time.monotonic() - t < MEMBERS_WAIT_S for t in self._members_pending.values() if t)
+        for topic, types in graph:
             if topic in self.channels or not self.wanted(topic) or not types:
                 continue
+            parsed = parse_robot_topic(topic)
+            if self.bundles and parsed and parsed[1] in ROBOT_DATA and (parsed[0] in self.covered or waiting):
+                continue  # written from its swarm's bundle (or perhaps soon: its member list is on the way)
+            if self.bundles and topic.endswith("/" + SWARM_BUNDLE) and SWARM_MEMBERS_TOPIC.match(
+                    topic[: -len(SWARM_BUNDLE)] + "members"):
+                continue  # a bundle is written as the robots' own topics
             pubs = self.get_publishers_info_by_topic(topic)
             if not pubs:
                 continue
@@ -96,9 +130,11 @@ class RecorderNode(Node):
                                  durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
             self.channels[topic] = None
             self.joined.append((topic, time.time_ns()))
-            qos = qos_yaml(BEST_EFFORT if best_effort else RELIABLE, TRANSIENT_LOCAL if latched else VOLATILE,
-                           profile.depth)
-            self.create_subscription(cls, topic, self._callback(topic, type_name, qos), profile, raw=True)
+            offered = qos_yaml(BEST_EFFORT if best_effort else RELIABLE, TRANSIENT_LOCAL if latched else VOLATILE,
+                               profile.depth)
+            sub = self.create_subscription(cls, topic, self._callback(topic, type_name, offered), profile, raw=True)
+            if parsed and parsed[1] in ROBOT_DATA:
+                self._robot_subs.setdefault(parsed[0], []).append(sub)
 
     def _writer(self) -> BagWriter:
         """The bag, created on the first message."""
@@ -126,9 +162,13 @@ class RecorderNode(Node):
         parsed = parse_robot_topic(topic)
         if parsed and parsed[1] in ROBOT_DATA:
             ack_every = self.ack_every
+            covered, last, key = self.covered, self._last, parsed
 
             def record_robot(data: bytes) -> None:
+                if key[0] in covered:
+                    return  # its swarm's bundle has it (this subscription is on its way out)
                 record(data)
+                last[key] = data
                 self.robot_messages += 1
                 if self.robot_messages % ack_every == 0:
                     self._ack()
@@ -140,6 +180,81 @@ class RecorderNode(Node):
                 self._document(topic, data)
             return record_document
         return record
+
+    # --- bundles ------------------------------------------------------------------------------
+
+    def _on_members(self, base: str, topic: str, msg: String) -> None:
+        """A swarm covers these robots: from now on they are written from its bundle."""
+        self._members_pending[topic] = 0.0
+        try:
+            ids = [int(i) for i in json.loads(msg.data).get("robots", [])]
+        except (ValueError, TypeError, AttributeError):
+            self.get_logger().warning(f"{topic}: unreadable member list; its robots are recorded topic by topic")
+            return
+        new = [i for i in ids if i not in self.covered]
+        if not new:
+            return
+        for rid in new:
+            self.covered[rid] = base
+            for sub in self._robot_subs.pop(rid, []):
+                self.destroy_subscription(sub)
+            for kind in ROBOT_DATA:
+                if (rid, kind) in self._last:
+                    self._handover[(rid, kind)] = stamp_ns(self._last.pop((rid, kind)))
+        if not any(b == base for r, b in self.covered.items() if r not in new):
+            self.create_subscription(UInt8MultiArray, swarm_bundle_topic(base), self._on_bundle, qos.DATA, raw=True)
+
+    def _robot_channels(self, kind: str, ids) -> np.ndarray:
+        """Channel ids of ``kind`` for robots ``ids`` (registered on first use; a topic already in the
+        bag keeps its channel)."""
+        key = (kind, ids.tobytes())
+        cids = self._bundle_cids.get(key)
+        if cids is None:
+            bag = self._writer()
+            cids = []
+            for rid in ids.tolist():
+                topic = f"{robot_namespace(rid)}/{kind}"
+                cid = self.channels.get(topic)
+                if cid is None or cid < 0:
+                    cid = self.channels[topic] = bag.add_topic(topic, ROBOT_TYPES[kind], DATA_QOS)
+                cids.append(cid)
+            cids = self._bundle_cids[key] = np.array(cids, dtype=np.uint16)
+        return cids
+
+    def _on_bundle(self, data: bytes) -> None:
+        try:
+            blocks = read_bundle(data)
+        except (ValueError, struct.error) as exc:
+            self.get_logger().error(f"a swarm bundle that does not parse ({exc}): its messages are not in the bag")
+            return
+        now = time.time_ns()
+        bag = self._writer()
+        written = 0
+        for kind, ids, block, size in blocks:
+            cids = self._robot_channels(kind, ids)
+            if not self._handover:
+                bag.write_block(cids, block, size, now)
+                written += len(cids)
+                continue
+            for rid, cid, at in zip(ids.tolist(), cids.tolist(), range(0, len(block), size)):
+                item = bytes(block[at:at + size])
+                if self._take_over(rid, kind, item):
+                    bag.write(cid, item, now)
+                    written += 1
+        before = self.robot_messages
+        self.robot_messages += written
+        if self.robot_messages // self.ack_every != before // self.ack_every:
+            self._ack()
+
+    def _take_over(self, rid: int, kind: str, item: bytes) -> bool:
+        """Whether a bundle item is new: not already written from the robot's own topic."""
+        up_to = self._handover.get((rid, kind))
+        if up_to is None:
+            return True
+        if stamp_ns(item) <= up_to:
+            return False
+        del self._handover[(rid, kind)]
+        return True
 
     def _ack(self) -> None:
         if self.robot_messages != self._acked:

@@ -33,6 +33,7 @@ from ..recording.topics import robot_id_of_namespace
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
 from ..ros.model import RobotModel, SwarmModel
+from ..ros.publishing import ReaderAwarePublisher
 from ..core.scenarios import clock_period_from_document, parse_world_document, scenario_from_document
 from ..ros.stepping import StepRule
 
@@ -88,10 +89,11 @@ class RobotNode(Node):
         self.choice = params.declare_behavior(self)
         self.behavior = None  # resolved against the world's scenario in set_world
 
-        self.pub_pose = self.create_publisher(PoseStamped, "pose", qos.DATA)
-        self.pub_light = self.create_publisher(Illuminance, "light", qos.DATA)
-        self.pub_led = self.create_publisher(ColorRGBA, "led", qos.DATA)
-        self.pub_clock = self.create_publisher(TimeReference, "clock", qos.DATA)
+        # Data topics go to DDS only while someone listens (see ReaderAwarePublisher).
+        self.pub_pose = ReaderAwarePublisher(self, PoseStamped, "pose", qos.DATA)
+        self.pub_light = ReaderAwarePublisher(self, Illuminance, "light", qos.DATA)
+        self.pub_led = ReaderAwarePublisher(self, ColorRGBA, "led", qos.DATA)
+        self.pub_clock = ReaderAwarePublisher(self, TimeReference, "clock", qos.DATA)
         self.pub_traits = self.create_publisher(String, "traits", qos.LATCHED)
         if not lean:
             self.add_on_set_parameters_callback(self._on_set_parameters)

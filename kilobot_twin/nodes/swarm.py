@@ -12,7 +12,8 @@ e.g. ``-r __node:=swarm_1``, so that its ``members`` and ``robots`` topics diffe
 waits for all of them. Kuramoto coupling acts within a process only, so a coupled scenario is
 refused with slices > 1).
 
-A batched swarm also publishes ``~/members`` and ``~/robots`` (README, "nodes"). The robots are
+A batched swarm also publishes ``~/members``, ``~/bundle`` (its robots' messages of a step, the same
+bytes, in one message: what the recorder writes) and ``~/robots`` (README, "nodes"). The robots are
 lean nodes (no parameter services, no rosout) with the world's scenario's behaviour unless
 ``behavior`` is set.
 """
@@ -31,12 +32,12 @@ from rclpy.parameter import Parameter
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
-from std_msgs.msg import String
+from std_msgs.msg import String, UInt8MultiArray
 
 from ..core import behaviors as B
 from ..core.traits import TRAIT_NAMES
 from ..errors import ConfigError
-from ..recording import topics
+from ..recording import cdr, topics
 from ..ros import convert, params, qos
 from ..ros.executors import make_executor, release, run_node, spin
 from ..ros.model import SwarmModel
@@ -93,7 +94,7 @@ class SwarmNode(Node):
         self.create_subscription(String, f"{self.world}/scenario", self._on_world, qos.LATCHED)
         self.create_subscription(String, f"{self.world}/state", self._on_state, qos.LATCHED)
         self.create_subscription(Clock, "/clock", self._on_clock, qos.CLOCK)
-        self.pub_members = self.pub_cloud = None
+        self.pub_members = self.pub_cloud = self.pub_bundle = None
         self.clock_period_s = 0.0  # from the world document
 
     # --- robots ---------------------------------------------------------------------------------
@@ -123,6 +124,7 @@ class SwarmNode(Node):
                                     max(self.n_robots, int(doc.get("robots", 0))))
             # Announced before the robots exist, so that nobody counts a robot both ways.
             self.pub_cloud = self.create_publisher(PointCloud2, f"~/{topics.SWARM_CLOUD}", qos.DATA)
+            self.pub_bundle = self.create_publisher(UInt8MultiArray, f"~/{topics.SWARM_BUNDLE}", qos.DATA)
             self.pub_members = self.create_publisher(String, "~/members", qos.LATCHED)
             self.pub_members.publish(convert.members_msg(self.traits.ids))
         for col, rid in enumerate(self.traits.ids):
@@ -192,12 +194,16 @@ class SwarmNode(Node):
             self._publish_all(ns)
 
     def _publish_all(self, stamp_ns) -> None:
-        """Every robot's messages of the current step, serialized in one vectorised call."""
-        pose, light, led, clock = self.model.serialized(stamp_ns)
+        """Every robot's messages of the current step, serialized in one vectorised call; then the
+        same bytes once more as the swarm's bundle (what the recorder writes), then the cloud."""
+        records = dict(zip(cdr.BUNDLE_KINDS, self.model.records(stamp_ns)))
         if not convert.clock_steps(self.model.step_index, self.model.scenario.dt_s, self.clock_period_s):
-            clock = [None] * len(pose)
+            del records["clock"]
+        pose, light, led, clock = (cdr.rows(records[k]) if k in records else [None] * len(self.robots)
+                                   for k in cdr.BUNDLE_KINDS)
         for r, *msgs in zip(self.robots, pose, light, led, clock):
             r.publish_serialized(*msgs)
+        self.pub_bundle.publish(cdr.bundle_cdr(self.model.ids, records))
         self.pub_cloud.publish(self.model.cloud(stamp_ns))
 
     # --- report ------------------------------------------------------------------------------------------------
@@ -211,6 +217,9 @@ class SwarmNode(Node):
             "samples_published": total, "messages_published": 3 * total + clocks, "per_robot_samples": per_robot,
             "topics_per_robot": ["pose", "light", "led", "clock"],
             "published_per_topic": {"pose": total, "light": total, "led": total, "clock": clocks},
+            # Of those, handed to DDS (a robot topic with no reader skips it: ReaderAwarePublisher).
+            "handed_to_dds": sum(p.handed for r in self.robots
+                                 for p in (r.pub_pose, r.pub_light, r.pub_led, r.pub_clock)),
             "wall_s": time.monotonic() - self.t_start, "cpu_s": time.process_time() - self.cpu_start,
             "rss_bytes": _rss_bytes(), "rss_before_robots_bytes": self.rss_before_robots,
             "rss_after_robots_bytes": self.rss_after_robots, "late_steps": self.late_steps,

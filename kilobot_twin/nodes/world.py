@@ -14,7 +14,8 @@ Publishes (node ``world``, private names):
 
 Start gate: the world waits until ``robots`` robots are on the graph and every node named in
 ``wait_for_nodes`` (comma-separated, e.g. ``recorder,analysis``) subscribes to each robot's
-``wait_topics`` (default ``pose,light,led,clock,robots``; ``robots`` is a batched swarm's cloud) and
+``wait_topics`` (default ``pose,light,led,clock,robots``; ``robots`` is a batched swarm's cloud; a
+node that subscribes to a swarm's ``bundle`` counts as subscribed to its robots' data topics) and
 to every ``/analysis/`` topic on the graph, so that a recording holds every message,
 then ``settle_s`` more. Then:
 
@@ -174,15 +175,25 @@ class WorldNode(Node):
     def _subscribers_ready(self) -> bool:
         if not self.wait_for_nodes:
             return True
-        topics = [topic[: -len("pose")] + suffix for topic in self.robots.values() for suffix in self.wait_topics
-                  if suffix in DATA_TOPICS]
-        topics += [f"{base}/{suffix}" for base in self.swarms for suffix in self.wait_topics if suffix in SWARM_TOPICS]
+        topics_ = [topic[: -len("pose")] + suffix for topic in self.robots.values() for suffix in self.wait_topics
+                   if suffix in DATA_TOPICS]
+        topics_ += [f"{base}/{suffix}" for base in self.swarms for suffix in self.wait_topics if suffix in SWARM_TOPICS]
+        # A robot of a swarm also counts as subscribed by a node that takes its swarm's bundle
+        # (the recorder: the same bytes in one message per step).
+        bundle_takers = {base: {i.node_name for i in self.get_subscriptions_info_by_topic(topics.swarm_bundle_topic(base))}
+                         for base in self.swarms}
+        swarm_of = {rid: base for base, ids in self.swarms.items() for rid in ids or ()}
         # The analysis node's topics too (for every awaited node but the analysis itself): its
         # first values go out with the first step.
         analysis = [t for t, _ in self.get_topic_names_and_types() if t.startswith("/analysis/")]
-        for topic in topics + analysis:
-            names = {i.node_name for i in self.get_subscriptions_info_by_topic(topic)}
-            if not all(n in names for n in self.wait_for_nodes if n != "analysis" or topic not in analysis):
+        for topic in topics_ + analysis:
+            awaited = [n for n in self.wait_for_nodes if n != "analysis" or topic not in analysis]
+            parsed = topics.parse_robot_topic(topic)
+            names = bundle_takers[swarm_of[parsed[0]]] if parsed and parsed[0] in swarm_of else set()
+            if all(n in names for n in awaited):
+                continue  # (no graph query per robot topic when a bundle covers it)
+            names = names | {i.node_name for i in self.get_subscriptions_info_by_topic(topic)}
+            if not all(n in names for n in awaited):
                 return False
         return True
 

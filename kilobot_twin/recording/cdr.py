@@ -18,6 +18,7 @@ import struct
 import numpy as np
 
 from ..core.constants import LED_BLUE, LED_OFF, LED_RED
+from .topics import ROBOT_DATA
 
 NS_PER_S = 1_000_000_000
 FRAME_ID = "arena"
@@ -176,9 +177,15 @@ def _cdr_string(text: str) -> bytes:
 
 
 class _CdrRecord:
-    """One message type's CDR layout: constant bytes plus named primitive fields at fixed offsets."""
+    """One message type's CDR layout: constant bytes plus named primitive fields at fixed offsets.
+
+    The bytes end with zeros up to a multiple of 4, as a DDS subscriber receives them (Fast DDS
+    pads the serialized payload; a TimeReference of 47 bytes arrives as 48): what a swarm
+    publishes, its bundle carries and the bag holds are then the same bytes.
+    """
 
     def __init__(self, constant: bytes, fields: dict[str, tuple[int, str]]):
+        constant += bytes(-len(constant) % 4)
         self.template = np.frombuffer(constant, dtype=np.uint8)
         self.dtype = np.dtype({"names": list(fields), "formats": [f for _, f in fields.values()],
                                "offsets": [o for o, _ in fields.values()], "itemsize": len(constant)})
@@ -210,15 +217,16 @@ def _split_ns(ns, n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.divmod(np.broadcast_to(np.asarray(ns, dtype=np.int64), (n,)), NS_PER_S)
 
 
-def _rows(records: np.ndarray) -> list[bytes]:
+def rows(records: np.ndarray) -> list[bytes]:
     """The records as separate ``bytes`` objects (what Publisher.publish takes)."""
     buf = records.tobytes()
     size = records.dtype.itemsize
     return [buf[i:i + size] for i in range(0, len(buf), size)]
 
 
-def robot_cdr(stamp_ns, x_m, y_m, theta_rad, reading, reading_variance, led, ticks, tick_hz: float):
-    """Serialized ``(pose, light, led, clock)`` messages of robots, each a list of ``bytes``.
+def robot_records(stamp_ns, x_m, y_m, theta_rad, reading, reading_variance, led, ticks, tick_hz: float):
+    """``(pose, light, led, clock)`` of robots as NumPy record arrays laid out as their CDR (one
+    record per robot; ``.tobytes()`` of a record is the serialized message).
 
     Every argument but ``tick_hz`` is a scalar or an array over the robots (shape ``(n,)``); the
     bytes decode to what :meth:`kilobot_twin.ros.convert.RobotMessages.fill` puts into the messages.
@@ -237,7 +245,68 @@ def robot_cdr(stamp_ns, x_m, y_m, theta_rad, reading, reading_variance, led, tic
         colors[c] = np.broadcast_to(rgba[..., i], (n,))
     ref_ns = np.rint(np.asarray(ticks, dtype=np.float64) / tick_hz * NS_PER_S).astype(np.int64)
     clock["ref_sec"], clock["ref_nanosec"] = _split_ns(ref_ns, n)
-    return _rows(pose), _rows(light), _rows(colors), _rows(clock)
+    return pose, light, colors, clock
+
+
+def robot_cdr(stamp_ns, x_m, y_m, theta_rad, reading, reading_variance, led, ticks, tick_hz: float):
+    """Serialized ``(pose, light, led, clock)`` messages of robots, each a list of ``bytes``
+    (:func:`robot_records`, one ``bytes`` per robot)."""
+    return tuple(rows(r) for r in robot_records(stamp_ns, x_m, y_m, theta_rad, reading, reading_variance, led,
+                                                ticks, tick_hz))
+
+
+# --- a swarm's bundle: every robot message of one step in one message ------------------------------
+#
+# A batched swarm publishes, after its robots' own messages of a step, the same bytes once more as
+# one std_msgs/UInt8MultiArray (``/swarm/bundle``): the recorder writes each slice into the bag
+# as the message of its robot topic, so that a step costs one DDS message, not one per robot and
+# topic (README, "nodes"). Content, little endian:
+#   b"KTB1", u32 robots n, u32 blocks m, u32 ids[n], m x (u32 kind, u32 item bytes),
+#   then the m blocks in that order, each n items: item i is robot ids[i]'s serialized message.
+# ``kind`` indexes BUNDLE_KINDS (the robot data topic suffixes, :data:`~kilobot_twin.recording.topics.ROBOT_DATA`).
+
+BUNDLE_KINDS = ROBOT_DATA
+_BUNDLE_MAGIC = b"KTB1"
+
+
+def bundle_cdr(ids, blocks) -> bytes:
+    """Serialized std_msgs/UInt8MultiArray holding ``blocks`` (``{kind: record array over the robots
+    ids}``, e.g. from :func:`robot_records`), in :data:`BUNDLE_KINDS` order."""
+    ids = np.ascontiguousarray(np.atleast_1d(ids), dtype="<u4")
+    kinds = [k for k in BUNDLE_KINDS if k in blocks]
+    head = struct.pack("<4sII", _BUNDLE_MAGIC, ids.shape[0], len(kinds)) + ids.tobytes()
+    head += b"".join(struct.pack("<II", BUNDLE_KINDS.index(k), blocks[k].dtype.itemsize) for k in kinds)
+    for k in kinds:
+        if blocks[k].shape != ids.shape:
+            raise ValueError(f"bundle block {k}: {blocks[k].shape[0]} records for {ids.shape[0]} robots")
+    body = head + b"".join(blocks[k].tobytes() for k in kinds)
+    # UInt8MultiArray: layout.dim (empty sequence), layout.data_offset, then data (length + bytes).
+    return _CDR_HEADER + struct.pack("<III", 0, 0, len(body)) + body
+
+
+def read_bundle(data: bytes) -> list[tuple[str, np.ndarray, memoryview, int]]:
+    """A serialized bundle -> ``[(kind, robot ids, block bytes, item bytes), ...]`` (item ``i`` of a
+    block is ``block[i * size:(i + 1) * size]``). Raises ValueError for anything else."""
+    e = _order(data)
+    n_dims, _offset, n_bytes = struct.unpack_from(e + "III", data, 4)
+    if e != "<" or n_dims != 0 or 16 + n_bytes > len(data):
+        raise ValueError("not a bundle")
+    view = memoryview(data)[16:16 + n_bytes]
+    magic, n, m = struct.unpack_from("<4sII", view, 0)
+    pos = 12 + 4 * n + 8 * m
+    if magic != _BUNDLE_MAGIC or pos > n_bytes:
+        raise ValueError("not a bundle")
+    ids = np.frombuffer(view, dtype="<u4", count=n, offset=12)
+    table = np.frombuffer(view, dtype="<u4", count=2 * m, offset=12 + 4 * n).reshape(m, 2)
+    out = []
+    for kind, size in table.tolist():
+        if kind >= len(BUNDLE_KINDS) or pos + n * size > n_bytes:
+            raise ValueError("bundle table disagrees with its length")
+        out.append((BUNDLE_KINDS[kind], ids, view[pos:pos + n * size], size))
+        pos += n * size
+    if pos != n_bytes:
+        raise ValueError("bundle table disagrees with its length")
+    return out
 
 
 def string_cdr(text: str) -> bytes:

@@ -26,6 +26,10 @@ ROBOT_DATA = ("pose", "light", "led", "clock")
 #: ``/swarm_<k>``); its cloud is :func:`swarm_cloud_topic`.
 SWARM_MEMBERS_TOPIC = re.compile(r"^((?:.*/)?swarm[^/]*)/members$")
 SWARM_CLOUD = "robots"
+#: A batched swarm's bundle: its robots' messages of a step in one message (:func:`kilobot_twin.recording.cdr.bundle_cdr`),
+#: written into the bag as the robots' own topics, never as a topic of its own.
+SWARM_BUNDLE = "bundle"
+BUNDLE_TYPE = "std_msgs/msg/UInt8MultiArray"
 
 
 def robot_namespace(robot_id: int) -> str:
@@ -40,6 +44,10 @@ def robot_id_of_namespace(namespace: str) -> int | None:
 
 def swarm_cloud_topic(base: str) -> str:
     return f"{base}/{SWARM_CLOUD}"
+
+
+def swarm_bundle_topic(base: str) -> str:
+    return f"{base}/{SWARM_BUNDLE}"
 
 
 def topic_group(topic: str) -> str:

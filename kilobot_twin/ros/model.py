@@ -14,7 +14,7 @@ import numpy as np
 from ..core import sim
 from ..core.scenario import Scenario
 from ..core.traits import RobotTraits, SwarmTraits
-from ..recording.cdr import robot_cdr
+from ..recording.cdr import robot_records, rows
 from .convert import robot_cloud_cdr
 from ..core.scenarios import start_pose
 
@@ -52,13 +52,17 @@ class SwarmModel:
         self.scenario = self.scenario.replace(behavior=behavior)
         sim.restart_behavior(self.state, self.scenario)
 
-    def serialized(self, stamp_ns, cols=slice(None)):
-        """Serialized ``(pose, light, led, clock)`` lists for columns ``cols`` (all by default),
-        stamped ``stamp_ns`` (one value or one per column): see :func:`kilobot_twin.recording.cdr.robot_cdr`."""
+    def records(self, stamp_ns, cols=slice(None)):
+        """``(pose, light, led, clock)`` CDR record arrays for columns ``cols`` (all by default),
+        stamped ``stamp_ns`` (one value or one per column): see :func:`kilobot_twin.recording.cdr.robot_records`."""
         st = self.state
-        return robot_cdr(stamp_ns, st.x[0, cols], st.y[0, cols], st.theta[0, cols], st.reading[0, cols],
-                         np.broadcast_to(self.variance, st.x.shape[1:])[cols], st.led[0, cols], st.ticks[0, cols],
-                         self.scenario.tick_hz)
+        return robot_records(stamp_ns, st.x[0, cols], st.y[0, cols], st.theta[0, cols], st.reading[0, cols],
+                             np.broadcast_to(self.variance, st.x.shape[1:])[cols], st.led[0, cols], st.ticks[0, cols],
+                             self.scenario.tick_hz)
+
+    def serialized(self, stamp_ns, cols=slice(None)):
+        """Serialized ``(pose, light, led, clock)`` lists (one ``bytes`` per robot) of :meth:`records`."""
+        return tuple(rows(r) for r in self.records(stamp_ns, cols))
 
     def cloud(self, stamp_ns: int) -> bytes:
         """Every robot's state as one serialized PointCloud2 (see :func:`convert.robot_cloud_cdr`)."""

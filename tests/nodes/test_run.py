@@ -317,3 +317,78 @@ def test_recorder_writes_no_bag_when_nothing_was_recorded(tmp_path):
     log, _ = rec.communicate(timeout=30)
     assert rec.returncode == 0, log
     assert not out.exists() and "no bag written" in log
+
+
+PROBE = r"""
+import json, sys, time
+import rclpy
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from geometry_msgs.msg import PoseStamped
+from sensor_msgs.msg import Illuminance, PointCloud2, TimeReference
+from std_msgs.msg import ColorRGBA, String
+
+rclpy.init()
+n = Node("probe")
+data = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+got = {}
+for i in map(int, sys.argv[2].split(",")):
+    for kind, cls in (("pose", PoseStamped), ("light", Illuminance), ("led", ColorRGBA), ("clock", TimeReference)):
+        topic = f"/kilobot_{i}/{kind}"
+        got[topic] = []
+        n.create_subscription(cls, topic, lambda d, topic=topic: got[topic].append(bytes(d).hex()), data, raw=True)
+n.create_subscription(PointCloud2, "/swarm/robots", lambda d: None, data, raw=True)  # what the world's gate asks
+state = {}
+n.create_subscription(String, "/world/state", lambda m: state.update(json.loads(m.data)), latched)
+end = time.monotonic() + 90
+while state.get("state") != "done" and time.monotonic() < end:
+    rclpy.spin_once(n, timeout_sec=0.05)
+end = time.monotonic() + 1.0
+while time.monotonic() < end:
+    rclpy.spin_once(n, timeout_sec=0.02)
+json.dump(got, open(sys.argv[1], "w"))
+"""
+
+
+def test_bag_holds_the_bytes_a_dds_subscriber_receives_and_unread_topics_skip_dds(tmp_path):
+    """The recorder writes a batched swarm's robots from its bundle, not from their topics. A
+    separate subscriber process (rclpy, over DDS) takes robots 0 and 3 on their own topics: the
+    bag holds byte for byte what it received, in order; robots nobody subscribed to are in the bag
+    all the same, and their topics were mostly not handed to DDS (2 of 5 robots listened to: 40 %
+    of the messages; a robot's pose goes out until the world's start-gate subscription is seen
+    gone, up to the lockstep window of 32 steps: at most 6 % more)."""
+    from rosbags.rosbag2 import Reader
+
+    out, probe_file, stats = tmp_path / "bag", tmp_path / "probe.json", tmp_path / "swarm.json"
+    env = dict(ENV, ROS_DOMAIN_ID=str(int(ENV.get("ROS_DOMAIN_ID", "100")) % 100 + 140))
+    cmds = {"recorder": ["-m", "kilobot_twin.nodes.recorder", "--ros-args", "-p", f"out:={out}"],
+            "probe": ["-c", PROBE, str(probe_file), "0,3"],
+            "world": ["-m", "kilobot_twin.nodes.world", "--ros-args", "-p", "robots:=5", "-p", "duration_s:=10.0",
+                      "-p", "scenario:=random_walk", "-p", "seed:=2", "-p", "wait_for_nodes:=recorder,probe",
+                      "-p", "wait_topics:=robots"],
+            "swarm": ["-m", "kilobot_twin.nodes.swarm", "--ros-args", "-p", "robots:=5", "-p", "seed:=2",
+                      "-p", f"stats_file:={stats}"]}
+    procs = {name: subprocess.Popen([sys.executable, *c], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                    text=True) for name, c in cmds.items()}
+    try:
+        logs = {name: procs[name].communicate(timeout=120)[0] for name in ("world", "probe")}
+    finally:
+        for name in ("swarm", "recorder"):
+            procs[name].send_signal(signal.SIGINT)
+        logs.update({name: procs[name].communicate(timeout=60)[0] for name in ("swarm", "recorder")})
+    assert all(p.returncode == 0 for p in procs.values()), logs
+    probed = json.loads(probe_file.read_text())
+    bag = {}
+    with Reader(out) as r:
+        for c, _t, raw in r.messages():
+            bag.setdefault(c.topic, []).append(bytes(raw).hex())
+    for topic, received in probed.items():
+        assert len(received) == (11 if topic.endswith("/clock") else 101), topic
+        assert bag[topic] == received, topic
+    for i in (1, 2, 4):
+        assert [len(bag[f"/kilobot_{i}/{k}"]) for k in ("pose", "light", "led", "clock")] == [101, 101, 101, 11]
+    s = json.loads(stats.read_text())
+    n_probed = sum(len(v) for v in probed.values())
+    assert s["messages_published"] == 5 * (3 * 101 + 11)
+    assert n_probed <= s["handed_to_dds"] < 0.5 * s["messages_published"], s

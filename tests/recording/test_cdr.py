@@ -66,3 +66,45 @@ def test_writers_decode_with_rclpy():
     assert (m.height, m.width, m.encoding, m.step, m.is_bigendian) == (3, 5, "32FC1", 20, 0)
     assert (m.header.stamp.sec, m.header.stamp.nanosec, m.header.frame_id) == (2, 500_000_000, "arena")
     np.testing.assert_array_equal(np.frombuffer(bytes(m.data), "<f4").reshape(3, 5), field.astype(np.float32))
+
+
+def test_bundle_is_a_uint8_multiarray_of_the_robots_own_messages():
+    """rclpy's deserializer reads the bundle as a std_msgs/UInt8MultiArray; its header, read here
+    with struct from the layout in cdr.py's comment, and every item decode with rclpy to the
+    robot's own message (stamp, x, reading, colour)."""
+    import struct
+
+    from std_msgs.msg import UInt8MultiArray
+
+    ids = np.array([7, 2, 11])
+    x = np.array([0.1, -0.2, 0.3])
+    records = cdr.robot_records(5_000_000_001, x, [0.0, 1.0, 2.0], [0.5, 7.0, -3.0], [10.0, 20.0, 30.0], 4.0,
+                                [LED_RED, LED_OFF, LED_BLUE], [31.0, 62.0, 93.0], 31.0)
+    blocks = dict(zip(cdr.BUNDLE_KINDS, records))
+    del blocks["clock"]  # not a clock step
+    raw = cdr.bundle_cdr(ids, blocks)
+    body = bytes(deserialize_message(raw, UInt8MultiArray).data)
+    magic, n, m = struct.unpack_from("<4sII", body)
+    assert (magic, n, m) == (b"KTB1", 3, 3)
+    assert list(struct.unpack_from("<3I", body, 12)) == [7, 2, 11]
+    table = struct.unpack_from("<6I", body, 24)
+    sizes = table[1::2]
+    assert [cdr.BUNDLE_KINDS[k] for k in table[0::2]] == ["pose", "light", "led"]
+    pos = 48
+    items = {}
+    for kind, size in zip(("pose", "light", "led"), sizes):
+        items[kind] = [body[pos + i * size:pos + (i + 1) * size] for i in range(3)]
+        pos += 3 * size
+    assert pos == len(body)
+    for i in range(3):
+        p = deserialize_message(items["pose"][i], PoseStamped)
+        assert (p.header.stamp.sec, p.header.stamp.nanosec, p.pose.position.x) == (5, 1, x[i])
+        assert deserialize_message(items["light"][i], Illuminance).illuminance == [10.0, 20.0, 30.0][i]
+        c = deserialize_message(items["led"][i], ColorRGBA)
+        assert (c.r, c.b, c.a) == [(1.0, 0.0, 1.0), (0.0, 0.0, 0.0), (0.0, 1.0, 1.0)][i]
+    # The reader gives back the same slices.
+    got = {kind: [bytes(block[i * size:(i + 1) * size]) for i in range(len(rids))]
+           for kind, rids, block, size in cdr.read_bundle(raw)}
+    assert got == items
+    with pytest.raises(ValueError):
+        cdr.read_bundle(serialize_message(UInt8MultiArray(data=list(b"KTB1" + bytes(20)))))

@@ -36,7 +36,9 @@ def test_vectorised_cdr_decodes_to_the_message_path():
         for cls, topic, data in zip(TYPES, ("pose", "light", "led", "clock"), (e[i] for e in encoded)):
             ref = getattr(msgs, topic)
             assert deserialize_message(data, cls) == ref, (i, topic)
-            assert len(data) == len(serialize_message(ref))
+            # rclpy's serialization's length, padded to 4 bytes as DDS delivers it (the DDS probe
+            # test in tests/nodes/test_run.py; rclpy leaves alignment gaps unset, so not its bytes)
+            assert len(data) == len(serialize_message(ref)) + (-len(serialize_message(ref)) % 4)
 
 
 def test_cdr_readers_match_the_message_readers():
