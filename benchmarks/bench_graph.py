@@ -130,12 +130,15 @@ def main(argv):
     import argparse
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("which", nargs="*", choices=["lockstep", "realtime", "recorder"], default=[])
+    ap.add_argument("which", nargs="*", metavar="{lockstep,realtime,recorder}", default=[])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--repeat", type=int, default=None, help="lockstep runs (default 5, 1 with --quick)")
     ap.add_argument("--robots", type=int, default=None, help="robots (default: lockstep 50, realtime 200)")
     ap.add_argument("--swarms", type=int, default=1, help="swarm processes (run --swarms)")
     a = ap.parse_args(argv)
+    bad = [w for w in a.which if w not in ("lockstep", "realtime", "recorder")]
+    if bad:  # (argparse's choices refuse an empty list for nargs="*" on Python 3.11)
+        ap.error(f"unknown case {bad[0]!r}: use lockstep, realtime or recorder")
     which, quick = a.which or ["lockstep", "realtime", "recorder"], a.quick
     repeat = a.repeat if a.repeat is not None else (1 if quick else 5)
     with tempfile.TemporaryDirectory() as d:
