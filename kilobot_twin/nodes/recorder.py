@@ -84,7 +84,7 @@ class RecorderNode(Node):
         self._robot_subs: dict[int, list] = {}         # robot id -> its data subscriptions
         self._last: dict[tuple[int, str], bytes] = {}  # (robot, kind) -> last message written from its topic
         self._handover: dict[tuple[int, str], int] = {}  # (robot, kind) -> bundle items up to this stamp are in
-        self._bundle_cids: dict[tuple[str, bytes], np.ndarray] = {}
+        self._bundle_cids: dict[tuple[str, bytes], tuple[np.ndarray, np.ndarray | None]] = {}
         self.create_timer(0.05, self._ack)
         self.create_timer(period, self.discover)
         self.discover()
@@ -204,22 +204,23 @@ class RecorderNode(Node):
         if not any(b == base for r, b in self.covered.items() if r not in new):
             self.create_subscription(UInt8MultiArray, swarm_bundle_topic(base), self._on_bundle, qos.DATA, raw=True)
 
-    def _robot_channels(self, kind: str, ids) -> np.ndarray:
-        """Channel ids of ``kind`` for robots ``ids`` (registered on first use; a topic already in the
-        bag keeps its channel)."""
+    def _robot_channels(self, kind: str, ids) -> tuple[np.ndarray, np.ndarray | None]:
+        """Channel ids of ``kind`` for the robots ``ids`` whose topic the ``topics`` prefixes want
+        (registered on first use; a topic already in the bag keeps its channel), and which of
+        ``ids`` those are (None: all)."""
         key = (kind, ids.tobytes())
-        cids = self._bundle_cids.get(key)
-        if cids is None:
-            bag = self._writer()
+        got = self._bundle_cids.get(key)
+        if got is None:
+            topics = [f"{robot_namespace(rid)}/{kind}" for rid in ids.tolist()]
+            keep = np.array([self.wanted(t) for t in topics], dtype=bool)
             cids = []
-            for rid in ids.tolist():
-                topic = f"{robot_namespace(rid)}/{kind}"
+            for topic in (t for t, k in zip(topics, keep) if k):
                 cid = self.channels.get(topic)
                 if cid is None or cid < 0:
-                    cid = self.channels[topic] = bag.add_topic(topic, ROBOT_TYPES[kind], DATA_QOS)
+                    cid = self.channels[topic] = self._writer().add_topic(topic, ROBOT_TYPES[kind], DATA_QOS)
                 cids.append(cid)
-            cids = self._bundle_cids[key] = np.array(cids, dtype=np.uint16)
-        return cids
+            got = self._bundle_cids[key] = (np.array(cids, dtype=np.uint16), None if keep.all() else keep)
+        return got
 
     def _on_bundle(self, data: bytes) -> None:
         try:
@@ -228,18 +229,21 @@ class RecorderNode(Node):
             self.get_logger().error(f"a swarm bundle that does not parse ({exc}): its messages are not in the bag")
             return
         now = time.time_ns()
-        bag = self._writer()
         written = 0
         for kind, ids, block, size in blocks:
-            cids = self._robot_channels(kind, ids)
+            cids, keep = self._robot_channels(kind, ids)
+            if not len(cids):
+                continue
+            if keep is not None:  # some robots' topics are not wanted
+                ids, block = ids[keep], np.frombuffer(block, dtype=f"V{size}")[keep].tobytes()
             if not self._handover:
-                bag.write_block(cids, block, size, now)
+                self._writer().write_block(cids, block, size, now)
                 written += len(cids)
                 continue
             for rid, cid, at in zip(ids.tolist(), cids.tolist(), range(0, len(block), size)):
                 item = bytes(block[at:at + size])
                 if self._take_over(rid, kind, item):
-                    bag.write(cid, item, now)
+                    self._writer().write(cid, item, now)
                     written += 1
         before = self.robot_messages
         self.robot_messages += written

@@ -46,3 +46,25 @@ def test_robot_topics_hand_over_to_the_bundle_without_loss_or_duplicate(tmp_path
     assert x["/kilobot_0/light"] == x["/kilobot_1/light"] == [3, 4, 5, 6, 7]
     assert x["/kilobot_0/led"] == x["/kilobot_1/led"] == [0] * 5
     assert acked == sum(len(v) for v in x.values()) == 8 + 5 + 4 * 5
+
+
+def test_bundle_items_follow_the_topics_prefixes(tmp_path):
+    """``topics`` selects robot topics written from a bundle as it selects subscribed ones."""
+    for prefixes, expected in (("/world", set()), ("/kilobot_1/", {"/kilobot_1/pose", "/kilobot_1/light"}),
+                               ("/kilobot_", {f"/kilobot_{i}/{k}" for i in (0, 1, 2) for k in ("pose", "light")})):
+        out = tmp_path / prefixes.strip("/").replace("/", "_")
+        with Graph() as g:
+            rec = g.add(RecorderNode(context=g.context, parameter_overrides=overrides(
+                out=str(out), topics=prefixes, discovery_period_s=60.0)))
+            rec._on_members("/swarm", "/swarm/members", String(data='{"robots": [0, 1, 2]}'))
+            for k in range(3):
+                pose, light, _led, _clock = _step(k, [0, 1, 2])
+                rec._on_bundle(cdr.bundle_cdr([0, 1, 2], {"pose": pose, "light": light}))
+            written = rec.robot_messages
+            rec.close()
+        counts = BagReader(out).counts() if out.exists() else {}
+        assert set(counts) == expected and all(n == 3 for n in counts.values()), (prefixes, counts)
+        assert written == 3 * len(expected)
+        if expected == {"/kilobot_1/pose", "/kilobot_1/light"}:  # the right robot's bytes
+            assert [round(cdr.pose_stamped(m.data)[1], 9) for m in BagReader(out).messages()
+                    if m.topic == "/kilobot_1/pose"] == [10.0, 11.0, 12.0]
