@@ -112,6 +112,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
     global run ``m * K + k`` so that replicates are independent and reproducible.
     """
     speed_trial_sd = float(getattr(swarm, "speed_trial_sd", 0.0))
+    frame_lead = getattr(swarm, "frame_lead", "aligned")
     swarm = getattr(swarm, "swarm", swarm)
     trials = np.arange(cond.trials) if trials is None else np.asarray(trials)
     Kp = len(trials)
@@ -141,18 +142,22 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
     else:
         sc = synth.blink_scenario(cond.duration_s, cond.dt_s)
         T = mask.shape[-1]
-        led = blink_leds(sc, swarm, seed, runs, trial_idx, T)
+        # A free-running camera (``frame_lead`` random): each track starts a uniform fraction of a
+        # frame into the robot's blinking, so the timing error differs between replicates too.
+        lead = rng.uniform(0.0, cond.dt_s, size=(len(runs), len(swarm))) if frame_lead == "random" else None
+        led = blink_leds(sc, swarm, seed, runs, trial_idx, T, lead)
         s = summaries.blink(np.where(mask, led.astype(float), np.nan), cond.dt_s)
     return {k: v.reshape(M, Kp, -1) for k, v in s.items()}
 
 
-def blink_leds(sc, swarm: SwarmTraits, seed: int, runs, trials, T: int) -> np.ndarray:
+def blink_leds(sc, swarm: SwarmTraits, seed: int, runs, trials, T: int, lead_s=None) -> np.ndarray:
     """LED states of uncoupled blinking robots at steps 0..T-1, without stepping the physics.
 
     Without coupling a robot's ticks grow linearly, ``ticks(k) = k * dt * tick_hz * rate``
     (``rate`` with its trial jitter, from the core's own ``init_state``), so its LED is the
     core's ``blink_led`` of that; identical to :func:`kilobot_twin.core.sim.simulate` (tested)
-    and hundreds of times cheaper for long recordings.
+    and hundreds of times cheaper for long recordings. ``lead_s`` (runs, robots): the clock ran
+    that long before frame 0 (ticks start at ``lead_s * tick_hz * rate``).
     """
     from ..core import clocks
 
@@ -161,6 +166,9 @@ def blink_leds(sc, swarm: SwarmTraits, seed: int, runs, trials, T: int) -> np.nd
     # Accumulate in the same order as the stepped simulation (float sums are order-sensitive).
     inc = (sc.tick_hz * sc.dt_s) * st.clock
     acc = np.zeros(st.clock.shape)
+    if lead_s is not None:  # each robot's clock ran lead_s (runs, robots) before the first frame
+        acc = (sc.tick_hz * st.clock) * np.asarray(lead_s, dtype=float)
+        ticks[..., 0] = acc
     for k in range(1, T):
         acc = acc + inc
         ticks[..., k] = acc

@@ -793,7 +793,7 @@ def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
                 "tracking_noise_m": float(cond.tracking_noise_m)}
     if base.kind == "light_sweep":
         return {"sensor_noise_counts": float(sw.sensor_noise.mean())}
-    return {"clock_trial_sd": float(sw.clock_trial_sd.mean())}
+    return {"clock_trial_sd": float(sw.clock_trial_sd.mean()), "frame_lead": base.frame_lead}
 
 
 MODEL_TRAITS = {

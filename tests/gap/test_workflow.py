@@ -209,3 +209,28 @@ def test_a_sensor_without_noise_breaks_neither_the_tests_nor_the_likelihood(tmp_
     synth("light_sweep", hidden, ds, seed=1000, nuisance={"sensor_noise": 0.0})
     rep = run_gap([str(ds)], tmp_path / "out", gs=FAST, log=lambda *a: None)
     assert rep["named_effects"] == named and not rep["unexplained"]
+
+
+def test_blink_frame_lead_follows_the_recording(tmp_path):
+    """Toggles are timed to frames. The independent world of seed 1019 starts its robots up to
+    2.9 s late, at any point within a frame (a free-running camera): the base fits a random lead
+    and names clock_drift (the twin with clocks aligned to frame 0 left it unexplained, eval
+    2026-11-23). The twin's own generator starts every clock at frame 0: without clock jitter
+    (which would outweigh the timing error, and either choice is then right) the base sees it
+    aligned, and names clock_drift too."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("indep_world", Path(__file__).parents[2] / "benchmarks" / "indep_world.py")
+    iw = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(iw)
+    indep = tmp_path / "indep"
+    iw.generate("blink", "clock_drift", indep, seed=1019)
+    rep = run_gap([str(indep)], tmp_path / "out_i", gs=GapSettings(seed=1019), log=lambda *a: None)
+    assert rep["datasets"][0]["nuisances"]["frame_lead"] == "random"
+    assert rep["named_effects"] == ["clock_drift"] and not rep["unexplained"]
+    ds = tmp_path / "synth"
+    synth("blink", "clock_drift", ds, seed=5, nuisance={"clock_trial_sd": 0.0})
+    rep = run_gap([str(ds)], tmp_path / "out_s", gs=FAST, log=lambda *a: None)
+    assert rep["datasets"][0]["nuisances"]["frame_lead"] == "aligned"
+    assert rep["named_effects"] == ["clock_drift"]
