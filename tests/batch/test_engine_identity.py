@@ -94,6 +94,18 @@ def test_kernel_equals_core_bit_for_bit(name):
     _assert_same(fast, sim.simulate(sc, sw, 18, runs=[0, 9]))
 
 
+def test_every_compiled_loop_is_compared_with_the_core(monkeypatch):
+    """Each specialisation of the kernel's loop runs in at least one scenario above."""
+    used = {}
+    real = kernel.variant
+    for name in SCENARIOS:
+        monkeypatch.setattr(kernel, "variant", lambda ip, name=name: used.setdefault(name, real(ip)))
+        sc, sw = _pair(name)
+        engine.simulate(sc, sw, 17, runs=[0])
+    assert set(used.values()) == set(kernel.LOOPS)
+    assert used["straight_gaussian"] == "straight_gaussian"  # the paper's Monte Carlo case
+
+
 def test_the_scenarios_exercise_the_controllers():
     """Guard against a vacuous comparison: turns, holds, arrivals and walls do happen."""
     sc, sw = _pair("phototaxis")
