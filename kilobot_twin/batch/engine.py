@@ -11,6 +11,8 @@ the core as before.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from ..core import behaviors as B
@@ -33,8 +35,10 @@ def compiled(scenario: Scenario) -> bool:
 
 
 def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, trials=None, robot_index=None,
-             record_every: int = 0, poses=None, progress=None, coverage: bool | None = None) -> sim.Result:
-    """:func:`kilobot_twin.core.sim.simulate`, on the compiled kernel where :func:`compiled` says so."""
+             record_every: int = 0, poses=None, progress=None, coverage: bool | None = None,
+             threads: int = 1) -> sim.Result:
+    """:func:`kilobot_twin.core.sim.simulate`, on the compiled kernel where :func:`compiled` says so
+    (there in up to ``threads`` threads, each a share of the (run, robot) slots)."""
     if not compiled(scenario):
         return sim.simulate(scenario, traits, seed, runs=runs, trials=trials, robot_index=robot_index,
                             record_every=record_every, poses=poses, progress=progress, coverage=coverage)
@@ -85,14 +89,26 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
     # Report progress about 100 times a run, but give each kernel call at least ~1e5 robot-steps
     # (a call costs some tens of microseconds of argument checking).
     chunk = max(1, n // 100, -(-100_000 // S)) if progress is not None else n
-    for k0 in range(0, n, chunk):
-        k1 = min(n, k0 + chunk)
-        K.advance(0, S, k0, k1, n, window, fp, ip, table, sweep,
-                  x, y, th, ticks, motion, reading, mode, deadline, last, last_d, held,
-                  bias, clock, speed, wheel_noise, sigma_v, sigma_omega, gain, offset, noise,
-                  kmot, kwheel, ksens, kbeh, path, cost, rsum, visited, *rec_args)
-        if progress is not None:
-            progress(k1 - k0)
+
+    def slots(s0, s1):
+        for k0 in range(0, n, chunk):
+            k1 = min(n, k0 + chunk)
+            K.advance(s0, s1, k0, k1, n, window, fp, ip, table, sweep,
+                      x, y, th, ticks, motion, reading, mode, deadline, last, last_d, held,
+                      bias, clock, speed, wheel_noise, sigma_v, sigma_omega, gain, offset, noise,
+                      kmot, kwheel, ksens, kbeh, path, cost, rsum, visited, *rec_args)
+            if progress is not None:
+                progress(k1 - k0)
+
+    # Slots are independent and the kernel releases the GIL: split them over threads (the
+    # results do not depend on how). Progress is reported from one thread only.
+    parts = 1 if progress is not None else max(1, min(threads, S // 64))
+    bounds = np.linspace(0, S, parts + 1).astype(int)
+    if len(bounds) == 2:
+        slots(0, S)
+    else:
+        with ThreadPoolExecutor(len(bounds) - 1) as pool:
+            list(pool.map(slots, bounds[:-1], bounds[1:]))
 
     x, y, th, cost, path, rsum = (a.reshape(R, N) for a in (x, y, th, cost, path, rsum))
     return sim.result(st, scenario, (x, y, th), cost, path, np.zeros((R, N), dtype=np.int64), rsum, cov, rec,

@@ -7,6 +7,7 @@ returns the same per-(trial, robot) summaries as the measured data, shaped (M, t
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +28,10 @@ COMPONENTS = {
 
 #: Frame rate (Hz) that tracks are thinned to, about (see :func:`measured_summaries`).
 RATE_HZ = 10.0
+
+#: Threads one :func:`simulate` call uses for the engine and the track summaries. The results do
+#: not depend on it (tested); the workflow's own threads (folds) may call it at the same time.
+THREADS = min(2, os.cpu_count() or 1)
 
 
 @dataclass
@@ -123,19 +128,27 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
     if cond.kind == "motion":
         sc = synth.motion_scenario(cond.duration_s, cond.dt_s, floor_tilt)
         x0, y0, th0 = (np.tile(a[trials], (M, 1)) for a in cond.start)
-        res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, poses=(x0, y0, th0))
+        res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, poses=(x0, y0, th0),
+                              threads=THREADS)
         T = mask.shape[-1]
         x, y = res.traj["x"][..., :T], res.traj["y"][..., :T]
         if speed_trial_sd > 0:
             f = 1.0 + speed_trial_sd * rng.standard_normal(x.shape[:-1] + (1,))
             x = x[..., :1] + f * (x - x[..., :1])
             y = y[..., :1] + f * (y - y[..., :1])
-        x = x + cond.tracking_noise_m * rng.standard_normal(mask.shape)
-        y = y + cond.tracking_noise_m * rng.standard_normal(mask.shape)
-        s = summaries.motion(np.where(mask, x, np.nan), np.where(mask, y, np.nan), cond.dt_s)
+        # Tracking noise, then the data's gaps; in place (the same values as x + noise * z).
+        hidden = ~mask
+        tracks = []
+        for a in (x, y):
+            z = rng.standard_normal(mask.shape)
+            z *= cond.tracking_noise_m
+            z += a
+            z[hidden] = np.nan
+            tracks.append(z)
+        s = summaries.motion(*tracks, cond.dt_s, threads=THREADS)
     elif cond.kind == "light_sweep":
         sc = synth.light_scenario(cond.duration_s, cond.dt_s)
-        res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1)
+        res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, threads=THREADS)
         T = mask.shape[-1]
         stim = np.broadcast_to(sc.light.v_value(res.t_s[:T]), mask.shape)
         s = summaries.light_sweep(np.where(mask, stim, np.nan), np.where(mask, res.traj["reading"][..., :T], np.nan))

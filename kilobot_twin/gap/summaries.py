@@ -8,6 +8,7 @@ runs go through the same functions.
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -27,7 +28,8 @@ def _ffill(a):
     return np.where(first, out, np.nan)
 
 
-def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0), speed_lags_s=(1.0, 5.0)) -> dict:
+def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0), speed_lags_s=(1.0, 5.0),
+           threads: int = 1) -> dict:
     """Turn rate, speed, heading diffusion and mean heading of every track.
 
     Headings are those of displacements over ``lag_s`` (long against tracking noise). They
@@ -43,7 +45,8 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0
     :func:`kilobot_twin.analysis.turn_rate_from_track` does the turn rate and speed.)
 
     One pass per track (:func:`_motion_tracks`, compiled with Numba where available): the
-    workflow summarises thousands of simulated tracks per fit.
+    workflow summarises thousands of simulated tracks per fit. ``threads`` share the tracks (the
+    result does not depend on it).
     """
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
@@ -51,9 +54,22 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0
     L = max(1, int(round(lag_s / dt_s)))
     l1, l2 = (max(1, int(round(s / dt_s))) for s in msd_lags_s)
     s1, s2 = (max(1, int(round(s / dt_s))) for s in speed_lags_s)
-    out = np.empty((int(np.prod(lead)), 5))
-    _compiled_tracks()(np.ascontiguousarray(x.reshape(-1, x.shape[-1])), np.ascontiguousarray(y.reshape(-1, y.shape[-1])),
-                       L, l1, l2, s1, s2, float(dt_s), out)
+    R = int(np.prod(lead))
+    out = np.empty((R, 5))
+    xr = np.ascontiguousarray(x.reshape(-1, x.shape[-1]))
+    yr = np.ascontiguousarray(y.reshape(-1, y.shape[-1]))
+    tracks = _compiled_tracks()
+
+    def rows(r0, r1):
+        tracks(xr[r0:r1], yr[r0:r1], L, l1, l2, s1, s2, float(dt_s), out[r0:r1])
+
+    # Tracks are independent and the compiled pass releases the GIL: threads share the rows.
+    bounds = np.linspace(0, R, max(1, min(threads, R // 64)) + 1).astype(int)
+    if len(bounds) == 2:
+        rows(0, R)
+    else:
+        with ThreadPoolExecutor(len(bounds) - 1) as pool:
+            list(pool.map(rows, bounds[:-1], bounds[1:]))
     out = out.reshape(lead + (5,))
     return {k: out[..., j] for j, k in enumerate(_MOTION_KEYS)}
 
@@ -68,6 +84,7 @@ def _motion_tracks(x, y, L, l1, l2, s1, s2, dt, out):  # pragma: no cover - comp
     u = np.empty(Th)
     ok = np.empty(Th, np.bool_)
     res = np.empty(Th)
+    dist = np.empty(T)
     for r in range(R):
         n = 0
         dist_sum, s_sum, c_sum, t_sum, u_sum = 0.0, 0.0, 0.0, 0.0, 0.0
@@ -134,14 +151,13 @@ def _motion_tracks(x, y, L, l1, l2, s1, s2, dt, out):  # pragma: no cover - comp
             for j in range(T - lag):
                 d = math.hypot(x[r, j + lag] - x[r, j], y[r, j + lag] - y[r, j])
                 if math.isfinite(d):
+                    dist[m] = d  # kept for the second pass (hypot is most of this loop's cost)
                     ss += d
                     m += 1
             nd = max(m, 2)
             md, sq = ss / nd, 0.0
-            for j in range(T - lag):
-                d = math.hypot(x[r, j + lag] - x[r, j], y[r, j + lag] - y[r, j])
-                if math.isfinite(d):
-                    sq += (d - md) ** 2
+            for j in range(m):
+                sq += (dist[j] - md) ** 2
             var[q] = sq / (nd - 1)
         out[r, 0] = turn
         out[r, 1] = dist_sum / n / (L * dt)

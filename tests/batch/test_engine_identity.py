@@ -94,6 +94,15 @@ def test_kernel_equals_core_bit_for_bit(name):
     _assert_same(fast, sim.simulate(sc, sw, 18, runs=[0, 9]))
 
 
+@pytest.mark.parametrize("name", ["straight_gaussian", "phototaxis_argos", "random_walk_walls"])
+def test_kernel_on_threads_equals_the_core(name):
+    """Slots shared over three threads (the gap workflow's simulations): the core's arrays."""
+    sc, sw = _pair(name)
+    runs = np.arange(40)
+    fast = engine.simulate(sc, sw, 5, runs=runs, trials=runs % 3, record_every=1, threads=3)
+    _assert_same(fast, sim.simulate(sc, sw, 5, runs=runs, trials=runs % 3, record_every=1))
+
+
 def test_every_compiled_loop_is_compared_with_the_core(monkeypatch):
     """Each specialisation of the kernel's loop runs in at least one scenario above."""
     used = {}

@@ -144,3 +144,7 @@ def test_compiled_motion_summaries_equal_a_vectorised_second_implementation():
     assert np.isnan(got["turn_rate"][2, 3]) and np.isnan(got["speed"][2, 4])
     for k in want:
         np.testing.assert_allclose(got[k], want[k], rtol=1e-9, atol=1e-12, equal_nan=True, err_msg=k)
+    # Shared over threads (enough tracks that three threads get some each): the same.
+    got = summaries.motion(np.tile(x, (30, 1, 1)), np.tile(y, (30, 1, 1)), dt, threads=3)
+    for k in want:
+        np.testing.assert_allclose(got[k], np.tile(want[k], (30, 1)), rtol=1e-9, atol=1e-12, equal_nan=True, err_msg=k)
