@@ -34,6 +34,19 @@ def compiled(scenario: Scenario) -> bool:
             and K.math_matches_numpy())
 
 
+def share(fn, n: int, threads: int, least: int = 64) -> None:
+    """Call ``fn(i0, i1)`` over contiguous ranges covering ``[0, n)``, in up to ``threads``
+    threads with at least ``least`` items each (one call, in this thread, when that is one range).
+    For compiled work that releases the GIL and writes disjoint parts of its outputs."""
+    parts = max(1, min(threads, n // least))
+    if parts == 1:
+        fn(0, n)
+        return
+    bounds = np.linspace(0, n, parts + 1).astype(int)
+    with ThreadPoolExecutor(parts) as pool:
+        list(pool.map(fn, bounds[:-1], bounds[1:]))
+
+
 def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, trials=None, robot_index=None,
              record_every: int = 0, poses=None, progress=None, coverage: bool | None = None,
              threads: int = 1) -> sim.Result:
@@ -102,13 +115,7 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
 
     # Slots are independent and the kernel releases the GIL: split them over threads (the
     # results do not depend on how). Progress is reported from one thread only.
-    parts = 1 if progress is not None else max(1, min(threads, S // 64))
-    bounds = np.linspace(0, S, parts + 1).astype(int)
-    if len(bounds) == 2:
-        slots(0, S)
-    else:
-        with ThreadPoolExecutor(len(bounds) - 1) as pool:
-            list(pool.map(slots, bounds[:-1], bounds[1:]))
+    share(slots, S, 1 if progress is not None else threads)
 
     x, y, th, cost, path, rsum = (a.reshape(R, N) for a in (x, y, th, cost, path, rsum))
     return sim.result(st, scenario, (x, y, th), cost, path, np.zeros((R, N), dtype=np.int64), rsum, cov, rec,

@@ -8,9 +8,10 @@ runs go through the same functions.
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+
+from ..batch import engine
 
 
 #: Lag over which headings and speeds are measured: long enough that tracking noise (mm)
@@ -64,12 +65,7 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0
         tracks(xr[r0:r1], yr[r0:r1], L, l1, l2, s1, s2, float(dt_s), out[r0:r1])
 
     # Tracks are independent and the compiled pass releases the GIL: threads share the rows.
-    bounds = np.linspace(0, R, max(1, min(threads, R // 64)) + 1).astype(int)
-    if len(bounds) == 2:
-        rows(0, R)
-    else:
-        with ThreadPoolExecutor(len(bounds) - 1) as pool:
-            list(pool.map(rows, bounds[:-1], bounds[1:]))
+    engine.share(rows, R, threads)
     out = out.reshape(lead + (5,))
     return {k: out[..., j] for j, k in enumerate(_MOTION_KEYS)}
 
