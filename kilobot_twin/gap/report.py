@@ -28,13 +28,14 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
                   "| round | signal | robots | trials | z | p |", "|---|---|---|---|---|---|"]
         for d in s["disagreements"]:
             lines.append(f"| {d['round']} | {d['signal']} | {d['robots'][:8]} | {d['trials']} | {d['z']:.1f} | {d['p_value']:.2g} |")
-        lines += ["", "| step | named | log-lik gain vs current (95 % CI) | runner-up | gain over it (95 % CI) | gap after |",
-                  "|---|---|---|---|---|---|"]
+        level = s["steps"][0]["score_vs_current"]["level"] if s["steps"] else 0.9
+        lines += ["", f"| step | named | log-lik gain vs current (one-sided {100 * level:.0f} % bounds) | runner-up "
+                  "| gain over it (95 % CI) | gap after |", "|---|---|---|---|---|---|"]
         for i, st in enumerate(s["steps"]):
             sc, ru = st["score_vs_current"], st["runner_up"]
             over = ("-" if ru["name"] is None else
                     f"{ru['loglik_gain_over_it']:.1f} ({ru['ci95'][0]:.1f} .. {ru['ci95'][1]:.1f})")
-            lines.append(f"| {i + 1} | {st['name']} | {sc['loglik_gain']:.1f} ({sc['ci95'][0]:.1f} .. {sc['ci95'][1]:.1f}) | "
+            lines.append(f"| {i + 1} | {st['name']} | {sc['loglik_gain']:.1f} ({sc['ci'][0]:.1f} .. {sc['ci'][1]:.1f}) | "
                          f"{ru['name'] or 'none'} | {over} | {st['gap_after']:.2f} |")
         for i, st in enumerate(s["steps"]):
             if st["runner_up"].get("why_this_one"):

@@ -2,7 +2,8 @@
 
 Each test pins one clause of the rule; loosening any clause (naming on the point estimate,
 forgetting the runner-up, forgetting the resolution check, flagging at alpha instead of
-alpha / n) fails one of them.
+alpha / n, lowering the confidence of clause 1 below 90 % or of clause 2 and parsimony below
+95 %) fails one of them.
 """
 
 import numpy as np
@@ -94,6 +95,39 @@ def test_rivals_are_candidates_that_predict_the_same_summaries():
     scores = {"speed_heterogeneity": speed, "wheel_slip": hb}
     d = decide(scores, _never, _rng(), 1000, library)
     assert d["order"] == ["speed_heterogeneity", "wheel_slip"] and d["ci_diff"][0] < 0 and not d["named"]
+
+
+def _gains_at(z: float, n: int = 40, sd: float = 2.0) -> np.ndarray:
+    """Per-robot gains whose sum is z standard errors above 0 (normal quantiles, so the bootstrap
+    distribution of the sum is normal to a good approximation: sd of the sum sd * sqrt(n))."""
+    from scipy.stats import norm
+
+    q = norm.ppf((np.arange(n) + 0.5) / n)
+    q /= q.std()
+    return z * sd / np.sqrt(n) + sd * q
+
+
+def test_clause_one_is_a_one_sided_90_percent_bound():
+    """A gain 1.6 standard errors above 0: its one-sided 90 % lower bound (1.28 se below) is
+    above 0, the lower end of a 95 % interval (1.96 se below) is not. Named at the default
+    level, not at 0.975; a gain 1.0 se above 0 is named at neither."""
+    g = _gains_at(1.6)
+    d = decide({"a": g}, lambda name: ["signal"], _rng(), 4000, library={})
+    assert d["named"] and d["ci_gain"][0] > 0
+    assert not decide({"a": g}, _never, _rng(), 4000, library={}, gain_level=0.975)["named"]
+    assert not decide({"a": _gains_at(1.0)}, _never, _rng(), 4000, library={})["named"]
+
+
+def test_clause_two_and_parsimony_stay_at_95_percent():
+    """A best candidate far ahead of the current model, 1.6 standard errors ahead of its rival:
+    not named (clause 2 asks for the 95 % interval's lower end). An extension 1.6 se ahead of the
+    model it contains gives way to it (parsimony asks the same)."""
+    rival = np.full(40, 3.0)
+    d = decide({"a": rival + _gains_at(1.6), "b": rival}, _never, _rng(), 4000, library={})
+    assert d["best"] == "a" and d["ci_gain"][0] > 0 and d["ci_diff"][0] < 0 and not d["named"]
+    hb = np.full(40, 3.0)
+    d = decide({"bias_drift": hb + _gains_at(1.6), "heading_bias": hb}, lambda name: ["signal"], _rng(), 4000)
+    assert d["best"] == "heading_bias" and d["simplified"][0]["name"] == "bias_drift"
 
 
 def test_a_clear_winner_that_resolves_nothing_is_not_named():
