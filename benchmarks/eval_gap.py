@@ -62,7 +62,7 @@ def realised_sizes(truth: dict) -> dict:
         return np.array([rob[i][k] for i in ids], dtype=float)
 
     if truth["kind"] == "motion":
-        v = SPEED_M_S * col("speed_factor")
+        v = truth.get("program", {}).get("commanded_speed_m_s", SPEED_M_S) * col("speed_factor")
         sf = col("speed_factor")
         return {"heading_bias": float(np.std(-col("heading_bias") * v / AXLE_M, ddof=1)),
                 "bias_drift": float(np.std(-col("bias_drift") * v / AXLE_M, ddof=1)),
@@ -88,7 +88,8 @@ def _write(job: dict, ds: Path, effect_scale: float) -> dict:
     kind, hidden, seed = job["kind"], job["hidden"], job["seed"]
     if job["generator"] == "indep":
         return _indep().generate(kind, hidden, ds, seed=seed, nuisance_scale=job["nuisance_scale"],
-                                 effect_scale=effect_scale, fixed_shape=job["fixed_shape"])
+                                 effect_scale=effect_scale, fixed_shape=job["fixed_shape"],
+                                 program="random" if job.get("random_program") else None)
     from kilobot_twin.gap.synth import synth
 
     if effect_scale != 1.0:
@@ -340,6 +341,8 @@ def main(argv=None):
                     help="indep: every nuisance at X x nominal (default: randomised per dataset)")
     ap.add_argument("--effect-scale", type=float, default=1.0, help="indep: effect sizes x this")
     ap.add_argument("--fixed-shape", action="store_true", help="indep: 12 robots x 4 trials at 10 Hz")
+    ap.add_argument("--random-program", action="store_true",
+                    help="indep: draw each dataset's commanded speed and LED program (the twin's own otherwise)")
     ap.add_argument("--random-nuisance", action="store_true", help="synth: randomise the twin's nuisance levels")
     ap.add_argument("--at-mde", action="store_true", help="single effects set to the MDE stated without them (indep)")
     ap.add_argument("--summarise", action="store_true", help="only print the figures of OUT/results.json")
@@ -349,6 +352,9 @@ def main(argv=None):
     if a.summarise:
         summarise(json.loads((out / "results.json").read_text()), note)
         return 0
+    if a.random_program and a.generator != "indep":
+        print("error: --random-program: needs --generator indep (the twin's synth runs the twin's own program)", file=sys.stderr)
+        return 2
     if a.at_mde and a.generator != "indep":
         print("error: --at-mde: needs --generator indep (its effect sizes scale)", file=sys.stderr)
         return 2
@@ -376,9 +382,10 @@ def main(argv=None):
             return 2
     tag = "mde" if a.at_mde else (f"x{a.nuisance_scale}" if a.nuisance_scale is not None else
                                   ("rand" if a.generator == "indep" or a.random_nuisance else "nominal"))
+    tag += "_prog" if a.random_program else ""
     jobs = [{"kind": k, "hidden": h, "seed": a.first_seed + s, "out": str(out), "generator": a.generator,
              "nuisance_scale": a.nuisance_scale, "effect_scale": a.effect_scale, "fixed_shape": a.fixed_shape,
-             "random_nuisance": a.random_nuisance, "at_mde": a.at_mde,
+             "random_nuisance": a.random_nuisance, "at_mde": a.at_mde, "random_program": a.random_program,
              "name": f"{a.generator}_{tag}_{k}_{h.replace(',', '+') or 'none'}_{a.first_seed + s}"}
             for s in range(a.seeds) for k, h in cases]  # seed-major: a run cut short has every case
     out.mkdir(parents=True, exist_ok=True)

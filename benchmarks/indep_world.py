@@ -115,9 +115,10 @@ def _ou(z, h, tau):
     return out + (a ** np.arange(1, z.shape[-1] + 1)) * sd * z[..., :1]  # start in the stationary law
 
 
-def motion(rng, shape, nz, hidden, effect_scale):
+def motion(rng, shape, nz, hidden, effect_scale, program):
     n, K, hz = shape["robots"], shape["trials"], shape["frame_hz"]
-    v_pop = COMMANDED_SPEED_M_S * rng.uniform(0.85, 1.15)
+    v_cmd = program["commanded_speed_m_s"]
+    v_pop = v_cmd * rng.uniform(0.85, 1.15)
     w_pop = rng.uniform(-0.003, 0.003)
     s = effect_scale
     w_i = w_pop + (rng.normal(0, 0.008 * s, n) if "heading_bias" in hidden else 0.0)
@@ -186,10 +187,10 @@ def motion(rng, shape, nz, hidden, effect_scale):
                 continue
             m = keep[i]
             rows.append(np.column_stack([np.full(m.sum(), k), np.full(m.sum(), i), tf[i, m], px[i, m], py[i, m]]))
-    meta = {"kind": "motion", "dt_s": 1.0 / hz, "behavior": "straight", "nominal_speed_m_s": COMMANDED_SPEED_M_S}
+    meta = {"kind": "motion", "dt_s": 1.0 / hz, "behavior": "straight", "nominal_speed_m_s": v_cmd}
     # Truth in the twin's units: b = -omega L / v (clockwise positive), speed factor against
     # the commanded speed, drift of b per trial; per-robot heading-noise intensity.
-    truth = {"heading_bias": -w_i * AXLE_M / v_i, "speed_factor": v_i / COMMANDED_SPEED_M_S,
+    truth = {"heading_bias": -w_i * AXLE_M / v_i, "speed_factor": v_i / v_cmd,
              "bias_drift": -dw_i * AXLE_M / v_i, "sigma_omega": noise_i, "turn_rate_rad_s": w_i, "speed_m_s": v_i}
     extra = {"floor_tilt": tilt, "population": {"speed_m_s": v_pop, "turn_rate_rad_s": w_pop},
              "trial_turn_rates_rad_s": truth_trials}
@@ -207,7 +208,7 @@ def _keep(rng, shape, hz, drop_p, loss_rate_per_s=1 / 60, loss_s=2.0):
 
 # --- light sweep --------------------------------------------------------------------------------------
 
-def light_sweep(rng, shape, nz, hidden, effect_scale):
+def light_sweep(rng, shape, nz, hidden, effect_scale, program):
     n, K, hz = shape["robots"], shape["trials"], shape["frame_hz"]
     g_pop = 2.2 * rng.uniform(0.6, 1.5)
     o_pop = rng.uniform(0.0, 15.0)
@@ -242,9 +243,10 @@ def light_sweep(rng, shape, nz, hidden, effect_scale):
 
 # --- blink ------------------------------------------------------------------------------------------------
 
-def blink(rng, shape, nz, hidden, effect_scale):
+def blink(rng, shape, nz, hidden, effect_scale, program):
     n, K, hz = shape["robots"], shape["trials"], shape["frame_hz"]
-    f_pop = TICK_HZ * rng.uniform(0.97, 1.03)
+    tick_hz, half = program["tick_hz"], program["half_period_ticks"]
+    f_pop = tick_hz * rng.uniform(0.97, 1.03)
     f_i = f_pop * (1 + (rng.normal(0, 0.015 * effect_scale, n) if "clock_drift" in hidden else np.zeros(n)))
     rows = []
     for k in range(K):
@@ -262,7 +264,7 @@ def blink(rng, shape, nz, hidden, effect_scale):
         dW = np.diff(run, axis=1, prepend=0.0)
         phase = np.cumsum(np.sqrt(nz["tick_diffusion"] * dW) * rng.standard_normal((n, frames)), axis=1)
         ticks = f_k[:, None] * run + phase
-        led = np.where(t >= start[:, None], (np.floor(np.maximum(ticks, 0) / HALF_PERIOD_TICKS) % 2), 0.0)
+        led = np.where(t >= start[:, None], (np.floor(np.maximum(ticks, 0) / half) % 2), 0.0)
         keep = rng.random((n, frames)) >= nz["drop_p"]
         keep[:, 0] = True
         for i in range(n):
@@ -272,8 +274,8 @@ def blink(rng, shape, nz, hidden, effect_scale):
             tt = t[i, m]
             order = np.argsort(tt, kind="stable")
             rows.append(np.column_stack([np.full(m.sum(), k), np.full(m.sum(), i), tt[order], led[i, m][order]]))
-    meta = {"kind": "blink", "dt_s": 1.0 / hz, "half_period_ticks": HALF_PERIOD_TICKS, "nominal_tick_hz": TICK_HZ}
-    truth = {"clock_rate": f_i / TICK_HZ}
+    meta = {"kind": "blink", "dt_s": 1.0 / hz, "half_period_ticks": half, "nominal_tick_hz": tick_hz}
+    truth = {"clock_rate": f_i / tick_hz}
     return np.concatenate(rows), ("trial", "robot_id", "t_s", "led"), meta, truth, {"population": {"tick_hz": f_pop}}
 
 
@@ -298,25 +300,39 @@ def _write(out: Path, meta: dict, columns, rows: np.ndarray):
         f.write("\n".join(lines) + "\n")
 
 
+def draw_program(rng: np.random.Generator | None) -> dict:
+    """What the robots were programmed to do: the commanded speed and the LED program. Without a
+    generator, the Kilobot defaults; with one, commanded speeds of 0.6x-1.6x, toggling every 10-60
+    ticks of a 25-40 Hz clock (measured-v1's ``nominal_speed_m_s``, ``half_period_ticks``,
+    ``nominal_tick_hz``)."""
+    if rng is None:
+        return {"commanded_speed_m_s": COMMANDED_SPEED_M_S, "tick_hz": TICK_HZ, "half_period_ticks": HALF_PERIOD_TICKS}
+    return {"commanded_speed_m_s": float(COMMANDED_SPEED_M_S * np.exp(rng.uniform(np.log(0.6), np.log(1.6)))),
+            "tick_hz": float(rng.uniform(25.0, 40.0)), "half_period_ticks": int(rng.integers(10, 61))}
+
+
 def generate(kind: str, hidden, out, seed: int = 0, nuisance_scale: float | None = None, effect_scale: float = 1.0,
-             fixed_shape: bool = False) -> dict:
-    """Write one dataset to ``out`` (meta.yaml, observations.csv, truth.json); return the truth."""
+             fixed_shape: bool = False, program: dict | str | None = None) -> dict:
+    """Write one dataset to ``out`` (meta.yaml, observations.csv, truth.json); return the truth.
+    ``program``: the commanded speed and LED program (:func:`draw_program`'s keys), ``"random"``
+    to draw them per dataset, or None for the Kilobot defaults."""
     hidden = [h for h in (hidden.split(",") if isinstance(hidden, str) else hidden) if h and h != "none"]
     for h in hidden:
         if h not in EFFECTS[kind]:
             raise ValueError(f"--hidden: {h} is not an effect of {kind} (use {', '.join(EFFECTS[kind])})")
     root = np.random.SeedSequence([seed, 0x1D3])
-    s_shape, s_nuis, s_world = (np.random.default_rng(s) for s in root.spawn(3))
+    s_shape, s_nuis, s_world, s_prog = (np.random.default_rng(s) for s in root.spawn(4))  # the first 3 as before
+    program = draw_program(s_prog if program == "random" else None) | (program if isinstance(program, dict) else {})
     shape = draw_shape(s_shape, kind, fixed_shape)
     nz = draw_nuisance(s_nuis, nuisance_scale)
     fn = {"motion": motion, "light_sweep": light_sweep, "blink": blink}[kind]
-    rows, columns, meta, per_robot, extra = fn(s_world, shape, nz, hidden, effect_scale)
+    rows, columns, meta, per_robot, extra = fn(s_world, shape, nz, hidden, effect_scale, program)
     meta.update({"robots": list(range(shape["robots"])), "trials": shape["trials"],
                  "duration_s": float(max(shape["lengths_s"]))})
     out = Path(out)
     _write(out, meta, columns, rows)
     truth = {"generator": "indep_world", "kind": kind, "hidden": hidden, "seed": seed, "effect_scale": effect_scale,
-             "nuisance": nz, "nuisance_scale": nuisance_scale, "shape": shape, **extra,
+             "nuisance": nz, "nuisance_scale": nuisance_scale, "shape": shape, "program": program, **extra,
              "robots": {str(i): {k: float(np.broadcast_to(v, (shape["robots"],))[i]) for k, v in per_robot.items()} for i in range(shape["robots"])}}
     (out / "truth.json").write_text(json.dumps(truth, indent=1))
     return truth
@@ -331,9 +347,11 @@ def main(argv=None):
     ap.add_argument("--nuisance-scale", type=float, default=None, help="all nuisances at X x nominal (default: random)")
     ap.add_argument("--effect-scale", type=float, default=1.0)
     ap.add_argument("--fixed-shape", action="store_true", help="12 robots x 4 trials at 10 Hz (blink 16 at 30 Hz)")
+    ap.add_argument("--random-program", action="store_true", help="draw the commanded speed and the LED program")
     a = ap.parse_args(argv)
     try:
-        truth = generate(a.kind, a.hidden, a.out, a.seed, a.nuisance_scale, a.effect_scale, a.fixed_shape)
+        truth = generate(a.kind, a.hidden, a.out, a.seed, a.nuisance_scale, a.effect_scale, a.fixed_shape,
+                         "random" if a.random_program else None)
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

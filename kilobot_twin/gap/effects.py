@@ -42,11 +42,15 @@ class TwinModel:
     #: blink: where a robot's clock stands at a recording's first frame: ``aligned`` (it starts
     #: then) or ``random`` (anywhere within a frame: a free-running camera); see :func:`fit_base`
     frame_lead: str = "aligned"
+    #: motion: the commanded speed the robots' speed factors multiply (a dataset's
+    #: ``nominal_speed_m_s``); heading biases are read from turn rates at that speed
+    forward_speed_m_s: float = synth.FORWARD_SPEED_M_S
 
     def with_traits(self, speed_trial_sd: float | None = None, frame_lead: str | None = None, **arrays) -> "TwinModel":
         sts = self.speed_trial_sd if speed_trial_sd is None else float(speed_trial_sd)
         return TwinModel(self.kind, self.swarm.with_values(**arrays), list(self.named), sts, dict(self.pooling),
-                         dict(self.slope_pooling), dict(self.noise_map), frame_lead or self.frame_lead)
+                         dict(self.slope_pooling), dict(self.noise_map), frame_lead or self.frame_lead,
+                         self.forward_speed_m_s)
 
     def pooled(self, summary: str, w, w_slope=None) -> "TwinModel":
         """The same model, noting how much its per-robot estimates for ``summary`` were pooled."""
@@ -64,7 +68,7 @@ def _nanmean(a, axis=None):
 
 def _bias(turn_rate, model: TwinModel):
     """Per-trial heading bias from turn rates: b = -omega L / v, v the model's nominal speed."""
-    return heading_bias_from_turn_rate(turn_rate, synth.FORWARD_SPEED_M_S * model.swarm.speed_factor[None, :])
+    return heading_bias_from_turn_rate(turn_rate, model.forward_speed_m_s * model.swarm.speed_factor[None, :])
 
 
 def within_var(b):
@@ -151,7 +155,7 @@ def _pooled_replicate_var(x):
 
 # --- the base model (paper Eq. 4) ------------------------------------------------------------
 
-def nominal_model(kind: str, robot_ids) -> TwinModel:
+def nominal_model(kind: str, robot_ids, forward_speed_m_s: float = synth.FORWARD_SPEED_M_S) -> TwinModel:
     from ..core.traits import TRAIT_DEFAULTS
 
     n = len(robot_ids)
@@ -160,7 +164,7 @@ def nominal_model(kind: str, robot_ids) -> TwinModel:
         tr.update({k: np.full(n, v) for k, v in synth.NOMINAL_MOTION_NOISE.items()})
     elif kind == "light_sweep":
         tr.update({k: np.full(n, v) for k, v in synth.NOMINAL_SENSOR.items()})
-    return TwinModel(kind, SwarmTraits(np.asarray(robot_ids), tr))
+    return TwinModel(kind, SwarmTraits(np.asarray(robot_ids), tr), forward_speed_m_s=forward_speed_m_s)
 
 
 def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinModel | None = None) -> TwinModel:

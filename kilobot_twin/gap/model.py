@@ -44,6 +44,12 @@ class Conditions:
     observed: np.ndarray  # (K, N, T) bool
     start: tuple | None = None  # motion: (x0, y0, theta0) each (K, N)
     tracking_noise_m: float = 0.002
+    #: What the robots were programmed to do, from the dataset's meta: the commanded speed
+    #: (motion; per-robot speed factors are relative to it) and the LED program (blink: toggle
+    #: every ``half_period_ticks`` of a clock at ``tick_hz``; clock rates are relative to it).
+    forward_speed_m_s: float = synth.FORWARD_SPEED_M_S
+    half_period_ticks: int = synth.HALF_PERIOD_TICKS
+    tick_hz: float = synth.TICK_HZ
 
     @property
     def shape(self):
@@ -72,7 +78,8 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         observed = np.isfinite(x)
         s = summaries.motion(x, y, dt_s)
         start = _start_poses(x, y, dt_s)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed, start, noise)
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed, start, noise,
+                          forward_speed_m_s=float(ds.meta.get("nominal_speed_m_s", synth.FORWARD_SPEED_M_S)))
     elif kind == "light_sweep":
         st, rd = ds.grid("stimulus")[1][..., ::q], ds.grid("reading")[1][..., ::q]
         observed = np.isfinite(rd)
@@ -82,7 +89,9 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         led = ds.grid("led")[1][..., ::q]
         observed = np.isfinite(led)
         s = summaries.blink(led, dt_s)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed)
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed,
+                          half_period_ticks=int(ds.meta.get("half_period_ticks", synth.HALF_PERIOD_TICKS)),
+                          tick_hz=float(ds.meta.get("nominal_tick_hz", synth.TICK_HZ)))
     return cond, s
 
 
@@ -126,7 +135,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(11, int(runs[0]), len(runs))))
     mask = np.tile(cond.observed[trials], (M, 1, 1))  # (M*K', N, T)
     if cond.kind == "motion":
-        sc = synth.motion_scenario(cond.duration_s, cond.dt_s, floor_tilt)
+        sc = synth.motion_scenario(cond.duration_s, cond.dt_s, floor_tilt, cond.forward_speed_m_s)
         x0, y0, th0 = (np.tile(a[trials], (M, 1)) for a in cond.start)
         res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, poses=(x0, y0, th0),
                               threads=THREADS)
@@ -153,7 +162,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
         stim = np.broadcast_to(sc.light.v_value(res.t_s[:T]), mask.shape)
         s = summaries.light_sweep(np.where(mask, stim, np.nan), np.where(mask, res.traj["reading"][..., :T], np.nan))
     else:
-        sc = synth.blink_scenario(cond.duration_s, cond.dt_s)
+        sc = synth.blink_scenario(cond.duration_s, cond.dt_s, cond.half_period_ticks, cond.tick_hz)
         T = mask.shape[-1]
         # A free-running camera (``frame_lead`` random): each track starts a uniform fraction of a
         # frame into the robot's blinking, so the timing error differs between replicates too.

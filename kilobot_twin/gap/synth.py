@@ -17,6 +17,7 @@ import numpy as np
 from ..recording import measured
 from ..core import sim
 from ..core.constants import WHEEL_SEPARATION_M
+from ..core.kinematics import MotorConfig
 from ..core.scenario import scenario_from_dict
 from ..core.traits import SwarmTraits
 from ..errors import ConfigError
@@ -28,6 +29,7 @@ NOMINAL_SENSOR = {"sensor_gain": 2.2, "sensor_offset": 5.0, "sensor_noise": 8.0}
 FORWARD_SPEED_M_S = 0.06 * 48 / 255
 TURN_RATE_SD_RAD_S = 0.008  # paper: heading-bias spread in turn rate
 NOMINAL_CLOCK_TRIAL_SD = 0.002
+HALF_PERIOD_TICKS, TICK_HZ = 30, 31.0  # the twin's blink program: toggle every 30 ticks of a 31 Hz clock
 
 #: effect -> (data kind, description). ``floor_tilt`` is deliberately outside the gap library.
 HIDDEN = {
@@ -140,8 +142,14 @@ def _tracks(ids, t, keep, **columns) -> dict:
             for k in range(K) for j, rid in enumerate(ids)}
 
 
-def motion_scenario(duration_s: float, dt_s: float, floor_tilt: dict | None = None):
+def motion_scenario(duration_s: float, dt_s: float, floor_tilt: dict | None = None,
+                    forward_speed_m_s: float = FORWARD_SPEED_M_S):
+    """Robots driving straight; ``forward_speed_m_s`` is the commanded speed (a dataset's
+    ``nominal_speed_m_s``), set through the motors' top wheel speed."""
     doc = {"behavior": "straight", "dt_s": dt_s, "duration_s": duration_s, "tick_hz": 31.0}
+    if forward_speed_m_s != FORWARD_SPEED_M_S:
+        m = MotorConfig()
+        doc["motors"] = {"wheel_speed_max_m_s": forward_speed_m_s * 255.0 * 2 / (m.straight_left + m.straight_right)}
     if floor_tilt:
         doc.update(floor_tilt=floor_tilt["amplitude"], floor_tilt_direction_rad=floor_tilt["direction_rad"])
     return scenario_from_dict(doc)
@@ -180,9 +188,11 @@ def _light_sweep(swarm, K, T, dt, seed, obs, rng):
     return tracks, {"kind": "light_sweep", "dt_s": dt, "sweep": "one ramp of V from 0 to 1 per trial"}
 
 
-def blink_scenario(duration_s: float, dt_s: float):
-    return scenario_from_dict({"behavior": {"kind": "blink", "half_period_ticks": 30}, "dt_s": dt_s,
-                               "duration_s": duration_s, "tick_hz": 31.0,
+def blink_scenario(duration_s: float, dt_s: float, half_period_ticks: int = HALF_PERIOD_TICKS, tick_hz: float = TICK_HZ):
+    """Uncoupled blinking robots; the LED program (toggle every ``half_period_ticks`` of a clock at
+    ``tick_hz``) is a dataset's ``half_period_ticks`` and ``nominal_tick_hz``."""
+    return scenario_from_dict({"behavior": {"kind": "blink", "half_period_ticks": int(half_period_ticks)}, "dt_s": dt_s,
+                               "duration_s": duration_s, "tick_hz": float(tick_hz),
                                "start": {"kind": "grid", "spacing_m": 0.06, "columns": 4}})
 
 
@@ -193,5 +203,5 @@ def _blink(swarm, K, T, dt, seed, obs, rng):
     keep = rng.random(res.traj["led"].shape) >= obs.drop_p
     keep[..., 0] = True
     tracks = _tracks(swarm.ids, t, keep, led=res.traj["led"].astype(float))
-    meta = {"kind": "blink", "dt_s": dt, "half_period_ticks": 30, "nominal_tick_hz": 31.0}
+    meta = {"kind": "blink", "dt_s": dt, "half_period_ticks": HALF_PERIOD_TICKS, "nominal_tick_hz": TICK_HZ}
     return tracks, meta

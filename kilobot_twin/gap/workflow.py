@@ -23,6 +23,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import itertools
 import json
@@ -482,7 +483,8 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
     kind = ds.kind
     meas = E.Summaries(meas, np.arange(cond.trials))
     fit_base = base is None
-    start = base if base is not None else E.nominal_model(kind, cond.robot_ids)
+    start = (dataclasses.replace(base, forward_speed_m_s=cond.forward_speed_m_s) if base is not None
+             else E.nominal_model(kind, cond.robot_ids, cond.forward_speed_m_s))
     fitter = _Fitter(cond, meas, start, gs, fit_base)
     comps = COMPONENTS[kind]
     all_trials = list(range(cond.trials))
