@@ -318,7 +318,7 @@ def _recovery(rows):
 
 def _shrink(rows):
     named = [r for r in rows if r["named"]]
-    ok = [r["shrink"]["value"] >= 0.8 and r["shrink"]["ci95"][0] > 0 for r in named]
+    ok = [r["shrink"]["value"] >= 0.8 and (r["shrink"]["ci95"][0] or -np.inf) > 0 for r in named]
     print(f"\ngap shrink >= 80 % with its 95 % interval excluding 0, in named cases: {_rate(ok)} (target >= 95 %)")
     by = defaultdict(list)
     for r in named:

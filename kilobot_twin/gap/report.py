@@ -23,7 +23,8 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
                   f"- gap after: {s['gap_after']['value']:.2f} (95 % CI {s['gap_after']['ci95'][0]:.2f} .. {s['gap_after']['ci95'][1]:.2f})",
                   f"- shrink where the disagreement was ({', '.join(s['gap_shrink']['summaries']) or 'nothing flagged'}; "
                   f"{s['gap_shrink']['before']:.2f} -> {s['gap_shrink']['after']:.2f}): {100 * s['gap_shrink']['value']:.0f} % "
-                  f"(95 % CI {100 * s['gap_shrink']['ci95'][0]:.0f} .. {100 * s['gap_shrink']['ci95'][1]:.0f} %)",
+                  + (f"(95 % CI {100 * s['gap_shrink']['ci95'][0]:.0f} .. {100 * s['gap_shrink']['ci95'][1]:.0f} %)"
+                     if s['gap_shrink']['ci95'][0] is not None else "(95 % CI unbounded: the gap before is not clearly above 0)"),
                   f"- metric: {s['gap_before']['metric']}; computed on held-out trials (leave-one-trial-out)", "",
                   "| round | signal | robots | trials | z | p |", "|---|---|---|---|---|---|"]
         for d in s["disagreements"]:
