@@ -45,12 +45,21 @@ class TwinModel:
     #: motion: the commanded speed the robots' speed factors multiply (a dataset's
     #: ``nominal_speed_m_s``); heading biases are read from turn rates at that speed
     forward_speed_m_s: float = synth.FORWARD_SPEED_M_S
+    #: trait -> (N,) each robot's estimate with the robots' spread kept (``shrink(keep_spread=True)``),
+    #: for the traits a named effect fitted; the model's own traits are the pooled predictions
+    individual: dict = field(default_factory=dict)
 
     def with_traits(self, speed_trial_sd: float | None = None, frame_lead: str | None = None, **arrays) -> "TwinModel":
         sts = self.speed_trial_sd if speed_trial_sd is None else float(speed_trial_sd)
         return TwinModel(self.kind, self.swarm.with_values(**arrays), list(self.named), sts, dict(self.pooling),
                          dict(self.slope_pooling), dict(self.noise_map), frame_lead or self.frame_lead,
-                         self.forward_speed_m_s)
+                         self.forward_speed_m_s, dict(self.individual))
+
+    def with_individual(self, **arrays) -> "TwinModel":
+        """The same model, with these traits' spread-keeping per-robot estimates (see ``individual``)."""
+        m = self.with_traits()
+        m.individual.update({k: np.asarray(v, dtype=float) for k, v in arrays.items()})
+        return m
 
     def pooled(self, summary: str, w, w_slope=None) -> "TwinModel":
         """The same model, noting how much its per-robot estimates for ``summary`` were pooled."""
@@ -81,7 +90,7 @@ def within_var(b):
     return float(v) if v.ndim == 0 else v
 
 
-def partial_pool(x, s2=None):
+def partial_pool(x, s2=None, keep_spread: bool = False):
     """Each robot's mean over its trials, partially pooled towards the population's (the robots
     are draws from a population, as in the paper: empirical Bayes, the best linear unbiased
     predictor of a random effect). ``x``: (..., K', N). Returns the pooled means and the weights
@@ -114,14 +123,20 @@ def partial_pool(x, s2=None):
         else:
             m = np.nanmean(x, axis=-2)
     s2 = np.asarray(s2, dtype=float)[..., None]
-    return shrink(m, np.where(n > 0, s2 / np.maximum(n, 1), np.inf))
+    return shrink(m, np.where(n > 0, s2 / np.maximum(n, 1), np.inf), keep_spread)
 
 
-def shrink(est, se2):
+def shrink(est, se2, keep_spread: bool = False):
     """Per-robot estimates (..., N) with sampling variances ``se2`` (inf: no estimate), pulled
     towards their mean: mu + w_i (est_i - mu), w_i = tau^2 / (tau^2 + se2_i), tau^2 the spread of
     the estimates beyond their sampling variance (method of moments, floored at 0). Robots without
-    an estimate get mu (weight 0); with one robot there is nothing to pool with (weight 1)."""
+    an estimate get mu (weight 0); with one robot there is nothing to pool with (weight 1).
+
+    These are the best predictions of each robot (what the held-out scores use), but their spread
+    is w tau^2, less than the robots' tau^2. ``keep_spread``: mu + sqrt(w_i) (est_i - mu)
+    instead (constrained empirical Bayes; Louis 1984, Ghosh 1992), whose spread is the robots'
+    own, what a twin of the swarm needs to reproduce its individuals (the weights returned are
+    the same)."""
     ok = np.isfinite(est) & np.isfinite(se2)
     robots = ok.sum(-1, keepdims=True)
     mu = np.where(ok, est, 0.0).sum(-1, keepdims=True) / np.maximum(robots, 1)
@@ -129,7 +144,7 @@ def shrink(est, se2):
     tau2 = np.maximum(spread - np.where(ok, se2, 0.0).sum(-1, keepdims=True) / np.maximum(robots, 1), 0.0)
     w = np.where(ok, tau2 / np.maximum(tau2 + np.where(ok, se2, 0.0), 1e-300), 0.0)
     w = np.where(robots >= 2, w, 1.0)
-    return np.where(ok, mu + w * (est - mu), mu), w
+    return np.where(ok, mu + (np.sqrt(w) if keep_spread else w) * (est - mu), mu), w
 
 
 def _est_var_bias(ref, model, resim=None):
@@ -410,7 +425,8 @@ class HeadingBias(Effect):
         spread = max(within_var(b) - _est_var_bias(ref, model, resim), 0.0)
         n = len(model.swarm)
         bias, w = partial_pool(b)
-        return model.with_traits(heading_bias=bias, bias_trial_sd=np.full(n, np.sqrt(spread))).pooled("turn_rate", w)
+        m = model.with_traits(heading_bias=bias, bias_trial_sd=np.full(n, np.sqrt(spread))).pooled("turn_rate", w)
+        return m.with_individual(heading_bias=partial_pool(b, keep_spread=True)[0])
 
 
 class BiasDrift(Effect):
@@ -439,9 +455,12 @@ class BiasDrift(Effect):
         # Levels (at each robot's mean trial) and slopes pooled towards the population's, each
         # with its own sampling variance: var / n_i and var / S_xx,i (see partial_pool).
         level, w = partial_pool(b, s2=var)
-        d, w_d = shrink(d, np.where(sxx > 0, var / np.maximum(sxx, 1e-300), np.inf))  # slopes, as the levels
-        return model.with_traits(heading_bias=level - d * kbar, bias_drift=d,
-                                 bias_trial_sd=np.full(n, np.sqrt(spread))).pooled("turn_rate", w, w_d)
+        se2 = np.where(sxx > 0, var / np.maximum(sxx, 1e-300), np.inf)
+        slope, w_d = shrink(d, se2)  # slopes, as the levels
+        m = model.with_traits(heading_bias=level - slope * kbar, bias_drift=slope,
+                              bias_trial_sd=np.full(n, np.sqrt(spread))).pooled("turn_rate", w, w_d)
+        level_i, slope_i = partial_pool(b, s2=var, keep_spread=True)[0], shrink(d, se2, keep_spread=True)[0]
+        return m.with_individual(heading_bias=level_i - slope_i * kbar, bias_drift=slope_i)
 
 
 class SpeedHeterogeneity(Effect):
@@ -459,7 +478,9 @@ class SpeedHeterogeneity(Effect):
         speed, w = partial_pool(meas["speed"])
         ratio = speed / _nanmean(ref["speed"], axis=(0, 1))
         m = model.with_traits(speed_factor=model.swarm.speed_factor * ratio).pooled("speed", w)
-        return _own_fixed_point(m, "speed_factor", "speed", speed, resim, iterations)
+        m = _own_fixed_point(m, "speed_factor", "speed", speed, resim, iterations)
+        # (speed factors scale the summary, so the spread-keeping estimates scale alike)
+        return m.with_individual(speed_factor=m.swarm.speed_factor * partial_pool(meas["speed"], keep_spread=True)[0] / speed)
 
 
 def _own_fixed_point(m: TwinModel, trait: str, summary: str, target, resim, iterations: int) -> TwinModel:
@@ -505,8 +526,12 @@ class MotionNoise(Effect):
         c = np.nanmean(resim(model.with_traits(sigma_omega=np.zeros(n)))["diffusion"])
         slope = (np.nanmean(ref["diffusion"]) - c) / np.mean(s2)
         d_i, w = partial_pool(meas["diffusion"])
-        var_i = np.where(np.isfinite(d_i), np.maximum(d_i - c, 0.0) / max(slope, 1e-30), np.mean(s2))
-        m = model.with_traits(sigma_omega=np.sqrt(var_i)).pooled("diffusion", w)
+
+        def variance(d):
+            return np.where(np.isfinite(d), np.maximum(d - c, 0.0) / max(slope, 1e-30), np.mean(s2))
+
+        m = model.with_traits(sigma_omega=np.sqrt(variance(d_i))).pooled("diffusion", w)
+        m = m.with_individual(sigma_omega=np.sqrt(variance(partial_pool(meas["diffusion"], keep_spread=True)[0])))
         # The trial-to-trial bias spread keeps only what the new noise does not already explain.
         b = _bias(meas["turn_rate"], m)
         spread = max(within_var(b) - _est_var_bias(ref, m, resim), 0.0)
@@ -537,6 +562,8 @@ class SensorGain(Effect):
             g = np.where(ok, m.swarm.sensor_gain * mg / np.where(ok, sg, 1.0), m.swarm.sensor_gain)
             o = np.where(ok, m.swarm.sensor_offset + mo - so, m.swarm.sensor_offset)
             m = m.with_traits(sensor_gain=g, sensor_offset=o)
+        mg_i, mo_i = partial_pool(meas["gain"], keep_spread=True)[0], partial_pool(meas["offset"], keep_spread=True)[0]
+        m = m.with_individual(sensor_gain=m.swarm.sensor_gain * mg_i / mg, sensor_offset=m.swarm.sensor_offset + mo_i - mo)
         # The reading noise that is left once robots differ in gain: a robot's bend at the
         # ceiling moves with its gain, and with it how much its sweeps vary.
         return fit_sensor_noise(m, meas, resim) if resim is not None else m
@@ -560,7 +587,8 @@ class ClockDrift(Effect):
         spread = max(within_var(rel) - _est_var_rel(ref, model, resim), 0.0)
         n = len(model.swarm)
         m = model.with_traits(clock_rate=c, clock_trial_sd=np.full(n, np.sqrt(spread))).pooled("toggle_rate", w)
-        return _own_fixed_point(m, "clock_rate", "toggle_rate", rate, resim, iterations)
+        m = _own_fixed_point(m, "clock_rate", "toggle_rate", rate, resim, iterations)
+        return m.with_individual(clock_rate=m.swarm.clock_rate * partial_pool(meas["toggle_rate"], keep_spread=True)[0] / rate)
 
 
 #: What :func:`fit_base` estimates from the data, per kind (population levels only).

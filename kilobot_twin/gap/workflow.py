@@ -616,6 +616,11 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         "gap_after": {"metric": metric, "value": after, "ci95": [float(x) for x in np.percentile(bb[:, 1], [2.5, 97.5])]},
         "gap_shrink": shrink_doc,
         "nuisances": _nuisances(fitter.fit((), all_trials), cond) if fit_base else {},
+        # Per-robot estimates of the named effects' traits: ``individual`` (in model.yaml: the
+        # robots' spread kept) and ``predictive`` (pooled towards the population: each robot's
+        # best prediction, what the held-out gap was scored with).
+        "estimates": {k: {"individual": [float(x) for x in v], "predictive": [float(x) for x in final.swarm.values[k]]}
+                      for k, v in final.individual.items()},
         "minimum_detectable": mde,
         "steps": steps, "disagreements": disagreements, "seconds": time.perf_counter() - t0,
     }
@@ -892,7 +897,9 @@ def run_gap(data: list[str], out: str | Path, model_path: str | None = None, gs:
         for j, rid in enumerate(m.swarm.ids):
             entry = robots.setdefault(int(rid), {})
             for k in MODEL_TRAITS[m.kind]:
-                entry[k] = float(m.swarm.values[k][j])
+                # A fitted effect's traits with the robots' spread kept (the swarm's individuals);
+                # the pooled predictions the held-out scores used are in the report's estimates.
+                entry[k] = float(m.individual.get(k, m.swarm.values[k])[j])
     for entry in robots.values():
         for k in ALWAYS:
             entry.setdefault(k, 1.0 if k in ("speed_factor", "sensor_gain", "clock_rate") else 0.0)
