@@ -288,19 +288,33 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
         for c in comps:
             x = _without_wild_replicates(sims[c][:, 0, :])  # (M, N)
             pred[c]["mean"][k] = np.nanmean(x, axis=0)
-            # Each robot's spread (robots may differ in noise), shrunk halfway to the pooled one
-            # (M replicates estimate a variance to sqrt(2 / M)); floored at 1e-4 of the level so a
-            # deterministic prediction (a nuisance fitted as 0) cannot turn a tiny mismatch into an
-            # infinite log-likelihood.
-            with np.errstate(all="ignore"):
-                var_i = np.nanvar(x, axis=0, ddof=1)
-            pooled = np.nanmean(var_i)
-            var_i = 0.5 * np.where(np.isfinite(var_i), var_i, pooled) + 0.5 * pooled
+            # Floored at 1e-4 of the level so a deterministic prediction (a nuisance fitted as 0)
+            # cannot turn a tiny mismatch into an infinite log-likelihood.
+            var_i, pooled = _replicate_spread(x)
             floor = (1e-4 * np.nanmean(np.abs(x))) ** 2
             h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base, fitter.gs.library, model)
             pred[c]["sd"][k] = np.sqrt((var_i + floor) * (1 + h_track))
             pred[c]["sd_level"][k] = np.sqrt((pooled + floor) * (1 + h_level))
     return pred
+
+
+def _replicate_spread(x):
+    """Each robot's simulated spread from replicates x (M, N): its own variance shrunk halfway to
+    the typical robot's (M replicates estimate a variance only to sqrt(2 / M); robots may differ
+    in noise), and the mean over robots (what a mean over robots varies by, times n).
+
+    The typical spread is the robots' median variance over the median of the chi-square that M
+    replicates draw (the common variance when robots are alike), not their mean: one robot 6x
+    noisier than the rest (robots that differ in noise) had widened every other robot's
+    prediction through the mean."""
+    from scipy.stats import chi2
+
+    with np.errstate(all="ignore"):
+        var_i = np.nanvar(x, axis=0, ddof=1)
+    mean = float(np.nanmean(var_i))
+    dof = max(float(np.median(np.isfinite(x).sum(0))) - 1.0, 1.0)
+    typical = float(np.nanmedian(var_i)) * dof / chi2.median(dof)
+    return 0.5 * np.where(np.isfinite(var_i), var_i, typical) + 0.5 * typical, mean
 
 
 def _without_wild_replicates(x, k: float = 10.0):
