@@ -401,6 +401,23 @@ class Effect(abc.ABC):
     #: training trials) or "line" (a line per robot over trial index). Sets the estimation part
     #: of the predictive variance (see :func:`leverage`).
     predicts: dict = {}
+    #: Parts of the held-out gap where this effect's disagreement shows (see
+    #: :func:`kilobot_twin.gap.workflow._gap`): "track" (per-track means) for effects that move
+    #: robots' summaries; also "own" for effects that change how much they scatter.
+    gap_parts: tuple = ("track",)
+
+    #: The kind of statistic (:func:`kilobot_twin.gap.workflow.statistics`) each way of predicting
+    #: a summary can account for: robots that differ by a level, robots whose level moves over
+    #: trials, a population level.
+    _EXPLAINS = {"mean": ("between_robots",), "line": ("between_robots", "trial_trend"), "pop": ("level",)}
+
+    def explains(self, signal: str) -> bool:
+        """Whether a flagged ``signal`` ("summary:statistic") is one this effect accounts for: a
+        disagreement of the kind its parameters predict, in a summary it predicts. Naming it must
+        resolve such a signal (:func:`kilobot_twin.gap.workflow.decide`); a per-robot effect that
+        happens to move a population level (a tilted floor's diffusion level) has explained nothing."""
+        summary, _, stat = signal.partition(":")
+        return stat in self._EXPLAINS.get(self.predicts.get(summary), ())
 
     @abc.abstractmethod
     def fit(self, model: TwinModel, meas: dict, ref: dict, resim=None) -> TwinModel:
@@ -517,6 +534,7 @@ class MotionNoise(Effect):
 
     name, kind = "motion_noise", "motion"
     predicts = {"diffusion": "mean"}
+    gap_parts = ("track", "own")  # noisier robots scatter more: their own spread is the point
 
     def fit(self, model, meas, ref, resim=None):
         n = len(model.swarm)

@@ -429,7 +429,8 @@ def decide(scores: dict, resolves, rng: np.random.Generator, boot: int, library:
        it fits at least as well in sample; when it scores lower held-out the simpler best is
        preferred), nor one that predicts other summaries (it explains other data); and
     3. adding it resolves at least one flagged signal: ``resolves(name)`` returns the signals it
-       removes (called only when 1 and 2 hold).
+       removes (called only when 1 and 2 hold), counting only those of a kind the effect
+       accounts for (:meth:`effects.Effect.explains`).
 
     Nested models are judged by parsimony: when the best extends another candidate (contains it
     as a special case) and does not beat it clearly (the lower end of the interval of its gain
@@ -567,7 +568,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
             next_null = simulate(cond, cand_model, gs.m_null, child_seed(gs.seed, "null", round_ + 1))
             nulls[(names + (name,), round_ + 1)] = next_null  # the next round's null, if it is named
             after = {f["signal"]: f for f in detect(kind, meas, next_null, cond.trials, gs.alpha)}
-            return [f["signal"] for f in flagged if not after[f["signal"]]["flagged"]]
+            return [f["signal"] for f in flagged if not after[f["signal"]]["flagged"] and gs.library[name].explains(f["signal"])]
 
         d = decide(scores, resolves, rng, gs.boot, gs.library, gs.gain_level)
         best, order, ci_gain, ci_diff, resolved = d["best"], d["order"], d["ci_gain"], d["ci_diff"], d["resolved"]
@@ -606,7 +607,10 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
     # their sampling noise to both terms of the ratio.
     first = [d["signal"].split(":") for d in disagreements if d["round"] == 0]
     where = [c for c in comps if any(c == comp for comp, _ in first)]
-    parts = ("track",) + (("level",) if any(stat == "level" for _, stat in first) else ())
+    # per track, and also the model's own spread where a named effect changes how much robots
+    # scatter (robots that differ in noise show in their spread more than in their means)
+    parts = tuple(dict.fromkeys(p for n in ("",) + names for p in (gs.library[n].gap_parts if n else ("track",))))
+    parts += ("level",) if any(stat == "level" for _, stat in first) else ()
     if where:
         fb, fa = _gap(meas, pred_base, pred_final, where, parts=parts), _gap(meas, pred_final, pred_final, where, parts=parts)
         fbb = np.array([(_gap(meas, pred_base, pred_final, where, i, parts), _gap(meas, pred_final, pred_final, where, i, parts))

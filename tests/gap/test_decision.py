@@ -206,3 +206,24 @@ def test_shrink_interval_is_fieller_s_and_covers_at_its_level():
     assert abs(hits / n - 0.95) <= 0.025, hits / n  # 3.5 binomial sds
     # A gap before that is not clearly above 0 (0.2 +- 0.2): no bounded interval.
     assert shrink_interval(0.2, 0.05, 0.2 + boot[:, 0], 0.05 + boot[:, 1]) == [None, None]
+
+
+def test_an_effect_resolves_only_the_kind_of_disagreement_it_accounts_for():
+    """Per-robot means account for robots that differ (between_robots), a line per robot also for
+    levels that move over trials (trial_trend), neither for a population level or for a speed
+    that depends on heading; and only in the summaries they predict. Written out by hand for the
+    library."""
+    from kilobot_twin.gap.effects import LIBRARY
+
+    table = {
+        "heading_bias": {"turn_rate:between_robots"},
+        "bias_drift": {"turn_rate:between_robots", "turn_rate:trial_trend"},
+        "speed_heterogeneity": {"speed:between_robots"},
+        "motion_noise": {"diffusion:between_robots"},
+        "sensor_gain": {"gain:between_robots", "offset:between_robots"},
+        "clock_drift": {"toggle_rate:between_robots"},
+    }
+    signals = {f"{s}:{t}" for s in ("turn_rate", "speed", "diffusion", "gain", "offset", "toggle_rate")
+               for t in ("between_robots", "trial_trend", "level", "heading_dependence")}
+    for name, effect in LIBRARY.items():
+        assert {s for s in signals if effect.explains(s)} == table[name], name

@@ -262,3 +262,39 @@ def test_the_dataset_s_program_sets_what_the_twin_simulates(tmp_path, kind, hidd
     # would give are 50-70 % off).
     assert abs(np.polyfit(true, got, 1)[0] - 1) <= 0.1, np.polyfit(true, got, 1)
     assert abs(got.mean() / true.mean() - 1) <= 0.01, (got.mean(), true.mean())
+
+
+@pytest.mark.parametrize("predicts, named", [("pop", True), ("mean", False)])
+def test_a_name_must_resolve_a_disagreement_of_its_own_kind(tmp_path, predicts, named):
+    """A user's base model whose heading noise is 3x the data's: the diffusion's level is flagged.
+    An effect that refits the population's heading noise removes that flag. Declared as fitting a
+    population level ("pop") it accounts for a level and is named; declared as per-robot means
+    ("mean") the same fit has explained no disagreement of its kind (robots that differ), so it is
+    not named and the level stays unexplained (as on a tilted floor, where robots differing in
+    noise once took the credit for the diffusion level the tilt moved)."""
+    from dataclasses import replace
+
+    import yaml
+
+    from kilobot_twin.gap import effects as E
+
+    class NoiseLevel(E.Effect):
+        name, kind = "noise_level", "motion"
+
+        def fit(self, model, meas, ref, resim=None):
+            ratio = np.nanmean(meas["diffusion"]) / np.nanmean(ref["diffusion"])
+            return model.with_traits(sigma_omega=model.swarm.sigma_omega * np.sqrt(max(ratio, 0.0)))
+
+    effect = NoiseLevel()
+    effect.predicts = {"diffusion": predicts}
+    ds = tmp_path / "ds"
+    synth("motion", "", ds, seed=7)
+    ids = yaml.safe_load((ds / "meta.yaml").read_text())["robots"]
+    base = {"format": "kilobot-twin/traits-v1",
+            "robots": {int(i): {"sigma_omega": 0.03, "sigma_v": 0.0005} for i in ids}}
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(base))
+    rep = run_gap([str(ds)], tmp_path / "out", model_path=str(tmp_path / "base.yaml"),
+                  gs=replace(FAST, library={"noise_level": effect}), log=lambda *a: None)
+    assert "diffusion:level" in [d["signal"] for d in rep["disagreements"] if d["round"] == 0]
+    assert (rep["named_effects"] == ["noise_level"]) == named
+    assert ("diffusion:level" in rep["unexplained_signals"]) != named
