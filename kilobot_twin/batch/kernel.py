@@ -375,11 +375,13 @@ _MATCH: bool | None = None
 
 
 def math_matches_numpy() -> bool:
-    """Do the kernel's cos, sin, log, exp, hypot and pow give NumPy's bits here? (cached)
+    """Do the kernel's cos, sin, log, exp, hypot and pow give the core's bits here? (cached)
 
-    Both call the C library on most builds; a NumPy built with SIMD versions of these
-    functions (e.g. SVML on AVX-512) rounds some results differently, and then the kernel
-    would not reproduce the core bit for bit.
+    The kernel calls the C library. The core takes cos, sin and hypot from NumPy, which calls
+    the C library for them on the builds we know, and log, exp and pow from
+    :mod:`kilobot_twin.core.libm`, the C library's too (NumPy's own versions of these three are
+    SIMD code on AVX-512 machines and round some results differently). Where anything differs
+    the kernel would not reproduce the core bit for bit, and the engine runs the core instead.
     """
     global _MATCH
     if _MATCH is None:
@@ -391,7 +393,9 @@ def math_matches_numpy() -> bool:
             w = g.normal(size=v.size)
             out = np.empty((6, v.size))
             _compiled("_elementary")(v, w, out)
-            ref = np.stack([np.cos(v), np.sin(v), np.log(np.abs(v) + 1e-300), np.exp(-np.abs(v)), np.hypot(v, w),
-                            np.abs(v) ** 0.3])
+            from ..core import libm
+
+            ref = np.stack([np.cos(v), np.sin(v), libm.log(np.abs(v) + 1e-300), libm.exp(-np.abs(v)), np.hypot(v, w),
+                            libm.power(np.abs(v), 0.3)])
             _MATCH = bool(np.array_equal(out, ref))
     return _MATCH

@@ -13,7 +13,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import ConfigError
-from . import rng
+from . import libm, rng
 from .constants import LIGHT_PEAK, LIGHT_READING_MAX
 
 
@@ -46,7 +46,7 @@ class GaussianField:
 
     def intensity(self, x, y, t_s=0.0):
         r2 = (np.asarray(x) - self.center[0]) ** 2 + (np.asarray(y) - self.center[1]) ** 2
-        return self.peak * np.exp(-0.5 * r2 / self.sigma_m**2)
+        return self.peak * libm.exp(-0.5 * r2 / self.sigma_m**2)
 
 
 @dataclass(frozen=True)
@@ -203,7 +203,7 @@ def sensor_response(intensity, gain, offset, model: SensorModel = SensorModel())
     """Noise-free reading for a true intensity, per robot (shapes broadcast)."""
     y = np.maximum(offset + gain * intensity, 0.0)
     if model.knee > 0:
-        y = y / (1.0 + (y / model.ceiling) ** model.knee) ** (1.0 / model.knee)
+        y = y / libm.power(1.0 + libm.power(y / model.ceiling, model.knee), 1.0 / model.knee)
     return np.minimum(y, model.ceiling)
 
 

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import libm
+
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
@@ -98,7 +100,7 @@ def normal_pair(keys: np.ndarray, counter: int) -> tuple[np.ndarray, np.ndarray]
     z = mix64(keys + _offset(counter))
     u1 = ((z >> _S32).astype(np.float64) + 0.5) * _TO_UNIT32
     u2 = (z & _LOW32).astype(np.float64) * _TO_UNIT32
-    r = np.sqrt(-2.0 * np.log(u1))
+    r = np.sqrt(-2.0 * libm.log(u1))
     a = (2.0 * np.pi) * u2
     return r * np.cos(a), r * np.sin(a)
 
