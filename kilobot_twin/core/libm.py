@@ -23,6 +23,18 @@ import numpy as np
 #: Whether the core's log, exp and pow are the C library's (else NumPy's).
 C_LIBRARY = os.environ.get("KILOBOT_TWIN_JIT", "1") != "0" and importlib.util.find_spec("numba") is not None
 
+def _log(x):  # pragma: no cover - compiled
+    return math.log(x)
+
+
+def _exp(x):  # pragma: no cover - compiled
+    return math.exp(x)
+
+
+def _pow(x, y):  # pragma: no cover - compiled
+    return x**y
+
+
 _UFUNCS: dict = {}
 _LOCK = threading.Lock()
 
@@ -34,9 +46,9 @@ def _ufuncs() -> dict:
                 if C_LIBRARY:
                     from numba import vectorize
 
-                    _UFUNCS["log"] = vectorize(["float64(float64)"], cache=True)(lambda x: math.log(x))
-                    _UFUNCS["exp"] = vectorize(["float64(float64)"], cache=True)(lambda x: math.exp(x))
-                    _UFUNCS["pow"] = vectorize(["float64(float64, float64)"], cache=True)(lambda x, y: x**y)
+                    _UFUNCS["log"] = vectorize(["float64(float64)"], cache=True)(_log)
+                    _UFUNCS["exp"] = vectorize(["float64(float64)"], cache=True)(_exp)
+                    _UFUNCS["pow"] = vectorize(["float64(float64, float64)"], cache=True)(_pow)
                 else:
                     _UFUNCS.update(log=np.log, exp=np.exp, pow=np.power)
     return _UFUNCS
