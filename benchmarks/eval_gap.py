@@ -67,7 +67,7 @@ def realised_sizes(truth: dict) -> dict:
         return {"heading_bias": float(np.std(-col("heading_bias") * v / AXLE_M, ddof=1)),
                 "bias_drift": float(np.std(-col("bias_drift") * v / AXLE_M, ddof=1)),
                 "speed_heterogeneity": float(np.std(sf, ddof=1) / np.mean(sf)),
-                "motion_noise": float(np.std(col("sigma_omega") ** 2, ddof=1))}
+                "motion_noise": float(np.std(np.log(col("sigma_omega")), ddof=1))}
     if truth["kind"] == "light_sweep":
         g = col("sensor_gain")
         return {"sensor_gain": float(np.std(g, ddof=1) / np.mean(g))}

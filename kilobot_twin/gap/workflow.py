@@ -664,7 +664,10 @@ _MDE_OF = {"motion": {"heading_bias": ("turn_rate", "sd of the per-robot turn ra
            "blink": {"clock_drift": ("toggle_rate", "relative sd of the per-robot clock rate")}}
 
 
-_NOISE_UNIT = "sd over robots of the heading-noise variance sigma_omega^2, rad^2/s"
+_NOISE_UNIT = "sd over robots of ln sigma_omega (heading-noise intensities differ by a factor exp(size) per sd)"
+#: The largest spread of noise intensities the MDE search goes to: robots' sigma_omega a factor
+#: e^2 = 7.4 apart per sd (beyond it a lognormal spread is one robot against the rest).
+_MAX_LOG_SD = 2.0
 
 #: Effects whose spread the base model takes in as trial-to-trial spread (Eq. 4: identical robots,
 #: all of the spread beyond measurement is per trial), so that the base predicts them wider.
@@ -691,11 +694,11 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
     detection against the null's spread, and the leave-one-trial-out likelihood of the effect's
     pooled per-robot estimates against the base, with the bootstrap over robots of the rule.
 
-    Robots that differ in noise (``motion_noise``) differ in a variance: the emulation draws
-    their intensities lognormal around the ``base`` model's and lets the noisier robots' summaries
-    scatter more (:func:`naming_power`), and the size is stated in the twin's units, the sd over
-    robots of sigma_omega^2, through the base fit's map from sigma_omega^2 to the diffusion
-    summary (``base.noise_map``; without a base, in the summary's units).
+    Robots that differ in noise (``motion_noise``) differ by a factor: the emulation draws their
+    intensities lognormal around the ``base`` model's and lets the noisier robots' summaries
+    scatter more (:func:`naming_power`), and the size is the sd over robots of ln sigma_omega
+    (the base fit's map, ``base.noise_map``, says how much of the diffusion summary the heading
+    noise makes), searched up to 2 (sigma_omega a factor 7.4 apart per sd).
     """
     from scipy.stats import norm
 
@@ -730,18 +733,26 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         taus = tau_det * np.geomspace(0.7, 16.0, 20)
         noise, scale = None, (1.0 if comp == "turn_rate" else 1.0 / abs(level))
         if effect == "motion_noise":
-            # Without the base fit's map (no base, or a base given by the user), in the summary's units.
+            # Robots whose heading-noise intensities differ by a factor: sizes are the sd over robots
+            # of ln sigma_omega, emulated lognormal (naming_power). The noise's share of the
+            # summary at the population's intensity comes from the base fit's map (without one, a
+            # base given by the user, the whole summary is taken for noise).
             nm = base.noise_map if base is not None else {}
             nm = nm if nm.get("diffusion_per_var", 0.0) > 0 else {}  # a map that sees no heading noise
-            per_var = nm.get("diffusion_per_var", 1.0)
-            lvl = per_var * float(np.mean(base.swarm.sigma_omega**2)) if nm else level
-            if lvl > 0:
-                noise = (lvl, float(np.clip(1.0 - nm.get("diffusion_within_var0", 0.0) / max(s_w2, 1e-300), 0.0, 1.0)))
-            scale, unit = 1.0 / per_var, (_NOISE_UNIT if nm else unit)
+            lvl = nm["diffusion_per_var"] * float(np.mean(base.swarm.sigma_omega**2)) if nm else level
+            if not lvl > 0:  # no heading noise to differ in
+                continue
+            noise = (lvl, float(np.clip(1.0 - nm.get("diffusion_within_var0", 0.0) / max(s_w2, 1e-300), 0.0, 1.0)))
+            # the detection size in those units: the summary's sd over robots is lvl sqrt(exp(4 tau^2) - 1)
+            tau_det = 0.5 * float(np.sqrt(np.log1p((tau_det / lvl) ** 2)))
+            taus = tau_det * np.geomspace(0.7, 16.0, 20)
+            taus = taus[taus <= _MAX_LOG_SD] if (taus <= _MAX_LOG_SD).any() else taus[:1]
+            scale, unit = 1.0, _NOISE_UNIT
         pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0, seed=seed, noise=noise,
                           gain_level=gain_level)
         tau = _first_crossing(taus, pw, power)
-        # None: not named with that power even at 16x the detection size (too few robots).
+        # None: not named with that power even at 16x the detection size (too few robots), or,
+        # for noise intensities, at a spread of _MAX_LOG_SD.
         named = tau * scale if np.isfinite(tau) else None
         out[effect] = {"size": named, "detection_size": tau_det * scale, "unit": unit}
         if effect == "heading_bias" and named is not None:  # also in the twin's units, b = -omega L / v
@@ -776,9 +787,10 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     beat a robot's mean, its rival, at 95 % (``RIVAL_LEVEL``).
     Common random numbers across ``taus``, so the curve is smooth in tau.
 
-    ``noise = (level, f)``: robots that differ in a noise intensity (a variance, never negative).
-    Their noise's share of the summary, ``level`` at the population's intensity, scales by
-    r_i = exp(s z_i - s^2 / 2), lognormal with mean 1 and sd tau / level; the share ``f`` of the
+    ``noise = (level, f)``: robots that differ in a noise intensity (a variance, never negative),
+    ``taus`` the sd over robots of the log of its square root (ln sigma_omega). Their noise's share
+    of the summary, ``level`` at the population's intensity, scales by r_i = exp(s z_i - s^2 / 2),
+    s = 2 tau, lognormal with mean 1; the share ``f`` of the
     within-robot variance that the noise makes scales by r_i^2 (the rest, tracking, does not).
     The effect's predictive variance is then each robot's own at its fitted ratio, shrunk
     halfway to the pooled one, as :func:`_heldout` does with simulations; the base's is the
@@ -806,7 +818,7 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
             x = eps + tau * effect
         else:
             level, f = noise
-            sig = np.sqrt(np.log1p((tau / level) ** 2))
+            sig = 2.0 * tau  # tau: sd of ln sigma_omega; the summary's noise share goes with sigma_omega^2
             r = np.exp(sig * effect - 0.5 * sig**2)
             x = level * (r - 1) + eps * np.sqrt(1 - f + f * r**2)
         flagged = stat(x) - null_mean > threshold
