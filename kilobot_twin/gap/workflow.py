@@ -619,8 +619,8 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
     where = [c for c in comps if any(c == comp for comp, _ in first)]
     # per track, and also the model's own spread where a named effect changes how much robots
     # scatter (robots that differ in noise show in their spread more than in their means)
-    parts = tuple(dict.fromkeys(p for n in ("",) + names for p in (gs.library[n].gap_parts if n else ("track",))))
-    parts += ("level",) if any(stat == "level" for _, stat in first) else ()
+    own = any("own" in gs.library[n].gap_parts for n in names)
+    parts = ("track",) + (("own",) if own else ()) + (("level",) if any(stat == "level" for _, stat in first) else ())
     if where:
         fb, fa = _gap(meas, pred_base, pred_final, where, parts=parts), _gap(meas, pred_final, pred_final, where, parts=parts)
         fbb = np.array([(_gap(meas, pred_base, pred_final, where, i, parts), _gap(meas, pred_final, pred_final, where, i, parts))
