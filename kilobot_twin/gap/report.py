@@ -41,6 +41,9 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
         for i, st in enumerate(s["steps"]):
             if st["runner_up"].get("why_this_one"):
                 lines.append(f"\nStep {i + 1}: the runner-up shown is {st['runner_up']['why_this_one']}.")
+            if st.get("set_aside"):
+                lines.append(f"Not scored at step {i + 1}: {', '.join(st['set_aside'])} (accounts for none of the "
+                             f"flagged signals: {', '.join(st['signals'])}).")
         if s.get("minimum_detectable"):
             lines += ["", "What this dataset can see: the smallest spread named with 80 % power (nothing named means "
                       "nothing larger), and the smallest the detection step alone flags with 80 % power:"]

@@ -85,9 +85,23 @@ def child_seed(root: int, purpose: str, *keys: int) -> int:
 
 # --- statistics ------------------------------------------------------------------------------
 
+#: The least within-robot mean square the F statistics count, relative to the summary's level
+#: squared (a part in 10^4): where a summary has no noise at all (no speed noise and no tracking
+#: noise), its within-robot scatter is rounding and numerical residue, and an F ratio over it
+#: would compare residues between data and simulation instead of robots.
+_REL_RESOLUTION = 1e-4
+
+
+def _rel_floor(x):
+    with np.errstate(all="ignore"):
+        return (_REL_RESOLUTION * np.nanmean(np.abs(x), axis=(-2, -1))) ** 2
+
+
 def _f_between(x, floor=None):
     """One-way ANOVA F of robots over trials; x (..., K, N) -> (...). ``floor`` (...; optional):
-    the least within-robot mean square that counts (a measurement's resolution)."""
+    the least within-robot mean square that counts (a measurement's resolution), at least
+    :data:`_REL_RESOLUTION` of the level."""
+    floor = _rel_floor(x) if floor is None else np.maximum(floor, _rel_floor(x))
     with np.errstate(all="ignore"):
         m_i = np.nanmean(x, axis=-2, keepdims=True)
         m = np.nanmean(x, axis=(-2, -1), keepdims=True)
@@ -95,9 +109,7 @@ def _f_between(x, floor=None):
         N = x.shape[-1]
         msb = np.nansum(n_i * (m_i - m) ** 2, axis=(-2, -1)) / (N - 1)
         msw = np.nansum((x - m_i) ** 2, axis=(-2, -1)) / np.maximum(np.isfinite(x).sum((-2, -1)) - N, 1)
-        if floor is not None:
-            msw = np.maximum(msw, floor)
-        return np.log(msb / msw)
+        return np.log(msb / np.maximum(msw, floor))
 
 
 def _f_trend(x):
@@ -113,7 +125,7 @@ def _f_trend(x):
         ss0 = np.nansum((x - m_i) ** 2, axis=(-2, -1))
         ss1 = np.nansum((x - m_i - slope * dk) ** 2, axis=(-2, -1))
         N = x.shape[-1]
-        return np.log(((ss0 - ss1) / N) / (ss1 / max(N * (K - 2), 1)))
+        return np.log(((ss0 - ss1) / N) / np.maximum(ss1 / max(N * (K - 2), 1), _rel_floor(x)))
 
 
 def _heading_dependence(v, h):
@@ -562,14 +574,21 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
             break
         cur = pred_cache[names]
         ll_cur = _loglik_per_robot(meas, cur, comps)
-        scores = {}
+        scores, aside = {}, []
         for e in candidates:
             if e.name in names:
+                continue
+            if not any(e.explains(f["signal"]) for f in flagged):
+                # It could not resolve any flagged signal (clause 3 of the naming rule), so it does
+                # not compete: a per-robot speed effect that scores well where robots' speeds differ
+                # by a chord's shortening does not stop the search for what turns them apart.
+                aside.append(e.name)
                 continue
             cand = names + (e.name,)
             pred_cache[cand] = _heldout(fitter, cand, kind)
             scores[e.name] = _loglik_per_robot(meas, pred_cache[cand], comps) - ll_cur  # (N,)
         if not scores:
+            log(f"[{kind}]   no candidate accounts for {[f['signal'] for f in flagged]}")
             unexplained, unexplained_signals = True, [f["signal"] for f in flagged]
             break
         def resolves(name):
@@ -600,6 +619,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
                           "ci95": [float(x) for x in ci_diff] if len(order) > 1 else None,
                           "why_this_one": d["runner_up_reason"]},
             "scores": {k: float(np.nansum(v)) for k, v in scores.items()},
+            "set_aside": aside,  # candidates that account for none of the flagged signals
             "signals": [f["signal"] for f in flagged],
             "resolved": resolved,
         })
@@ -728,6 +748,7 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             else:
                 k_eff = float(np.nanmean(seen.sum(0)))
                 s_w2 = max(E.within_var(x), _resolution(meas, comp) or 0.0)
+            s_w2 = max(s_w2, float(_rel_floor(x)))
             tau_det = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
             level = float(np.nanmean(x))
         taus = tau_det * np.geomspace(0.7, 16.0, 20)
