@@ -44,6 +44,13 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
             if st.get("set_aside"):
                 lines.append(f"Not scored at step {i + 1}: {', '.join(st['set_aside'])} (accounts for none of the "
                              f"flagged signals: {', '.join(st['signals'])}).")
+        nn = s.get("not_named")
+        if nn:
+            lines.append(f"\nRound {nn['round']} named nothing ({', '.join(nn['signals'])} stay unexplained): "
+                         + (f"the best candidate, {nn['best']} (gain {nn['scores'][nn['best']]:.1f}, one-sided "
+                            f"{100 * nn['level']:.0f} % bounds {nn['ci_gain'][0]:.1f} .. {nn['ci_gain'][1]:.1f}), is not "
+                            f"named: {nn['why']}." if nn["best"] else f"{nn['why']}.")
+                         + (f" Not scored: {', '.join(nn['set_aside'])} (they account for none of them)." if nn["set_aside"] else ""))
         if s.get("minimum_detectable"):
             lines += ["", "What this dataset can see: the smallest spread named with 80 % power (nothing named means "
                       "nothing larger), and the smallest the detection step alone flags with 80 % power:"]
@@ -77,19 +84,25 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
         axes[1].set_ylabel("gap (excess mean z^2, 0 = model noise)")
         axes[1].set_title(f"held-out gap, 95 % intervals; shrink {100 * sh['value']:.0f} %")
         axes[1].legend(fontsize=7)
-        names = sorted({n for st in s["steps"] for n in st["scores"]})  # one axis for every step
-        width = 0.8 / max(len(s["steps"]), 1)
-        for i, st in enumerate(s["steps"]):
-            vals = [st["scores"].get(n, np.nan) for n in names]
-            axes[2].bar(np.arange(len(names)) + width * (i - (len(s["steps"]) - 1) / 2), vals, width,
-                        label=f"step {i + 1}: named {st['name']}")
+        rounds = [(st["scores"], f"step {i + 1}: named {st['name']}", None) for i, st in enumerate(s["steps"])]
+        if nn and nn["scores"]:
+            rounds.append((nn["scores"], f"round {nn['round']}: nothing named", "//"))
+        names = sorted({n for sc, _, _ in rounds for n in sc})  # one axis for every step
+        width = 0.8 / max(len(rounds), 1)
+        for i, (sc, lab, hatch) in enumerate(rounds):
+            vals = [sc.get(n, np.nan) for n in names]
+            axes[2].bar(np.arange(len(names)) + width * (i - (len(rounds) - 1) / 2), vals, width, label=lab,
+                        hatch=hatch, edgecolor="k" if hatch else None)
         axes[2].set_xticks(np.arange(len(names)), names, rotation=20, fontsize=7)
         axes[2].axhline(0, color="k", lw=0.5)
         axes[2].set_xlabel("candidate effect")
         axes[2].set_ylabel("held-out log-likelihood gain")
         axes[2].set_title("candidate scores (held-out log-lik gain)")
-        if s["steps"]:
+        if rounds:
             axes[2].legend(fontsize=7)
+        else:
+            axes[2].text(0.5, 0.5, "nothing scored" if s["disagreements"] else "nothing flagged: nothing to score",
+                         ha="center", va="center", transform=axes[2].transAxes)
         png = save(fig, out / f"gap_{j}.png", dpi=100)
         lines += ["", f"![gap]({png.name})", ""]
     lines += [f"Updated model: `{report['model']}` (load with `kilobot-twin run --traits` or the batch engine)."]

@@ -550,7 +550,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
     all_trials = list(range(cond.trials))
     rng = np.random.default_rng(np.random.SeedSequence(gs.seed, spawn_key=(_PURPOSE["bootstrap"],)))
     names: tuple = ()
-    steps, disagreements = [], []
+    steps, disagreements, not_named = [], [], None
     unexplained, unexplained_signals = False, []
     pred_cache = {(): _heldout(fitter, (), kind)}
     nulls = {}  # (model names, round) -> a null simulated already
@@ -590,6 +590,8 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         if not scores:
             log(f"[{kind}]   no candidate accounts for {[f['signal'] for f in flagged]}")
             unexplained, unexplained_signals = True, [f["signal"] for f in flagged]
+            not_named = {"round": round_, "signals": unexplained_signals, "scores": {}, "set_aside": aside,
+                         "best": None, "why": "no candidate of the library accounts for these signals"}
             break
         def resolves(name):
             # A name must remove a disagreement, not only raise the likelihood elsewhere.
@@ -608,6 +610,17 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
             + (f"; resolves {resolved or 'no flagged signal'}" if d["clear"] else ""))
         if not d["named"]:
             unexplained, unexplained_signals = True, [f["signal"] for f in flagged]
+            if not ci_gain[0] > 0:
+                why = f"its gain over the current model is not above 0 at the one-sided {gs.gain_level:.0%} bound"
+            elif not ci_diff[0] > 0:
+                why = f"it does not beat the runner-up, {order[1]}, clearly (the 95 % interval of its gain over it reaches 0)"
+            else:
+                why = "adding it removes none of the flagged signals"
+            not_named = {"round": round_, "signals": unexplained_signals, "set_aside": aside, "best": best,
+                         "scores": {k: float(np.nansum(v)) for k, v in scores.items()},
+                         "ci_gain": [float(x) for x in ci_gain], "level": gs.gain_level,
+                         "runner_up": order[1] if len(order) > 1 else None,
+                         "ci95_over_runner_up": [float(x) for x in ci_diff] if len(order) > 1 else None, "why": why}
             break
         names = names + (best,)
         steps.append({
@@ -670,7 +683,10 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         "estimates": {k: {"individual": [float(x) for x in v], "predictive": [float(x) for x in final.swarm.values[k]]}
                       for k, v in final.individual.items()},
         "minimum_detectable": mde,
-        "steps": steps, "disagreements": disagreements, "seconds": time.perf_counter() - t0,
+        "steps": steps,
+        # the round that named nothing while signals were flagged: its scores and why its best was not named
+        "not_named": not_named,
+        "disagreements": disagreements, "seconds": time.perf_counter() - t0,
     }
     return {"section": section, "model": final, "residuals": _residuals(meas, pred_cache[()], pred_cache[names], comps)}
 

@@ -68,6 +68,11 @@ def test_effect_outside_the_library_is_unexplained(tmp_path):
     _, rep = run(tmp_path, "motion", "floor_tilt")
     assert rep["named_effects"] == []
     assert rep["unexplained"] and "speed:heading_dependence" in rep["unexplained_signals"]
+    # The report says why: no effect of the library accounts for a speed that depends on heading.
+    nn = rep["datasets"][0]["not_named"]
+    assert nn["signals"] == rep["unexplained_signals"] and nn["best"] is None and nn["scores"] == {}
+    assert set(nn["set_aside"]) == {"heading_bias", "bias_drift", "speed_heterogeneity", "motion_noise"}
+    assert "Round 0 named nothing" in (tmp_path / "out" / "report.md").read_text()
 
 
 def _per_robot_tolerance(ds_dir, component, trials):
@@ -319,3 +324,4 @@ def test_motion_without_speed_or_tracking_noise(tmp_path, hidden, named):
     assert rep["named_effects"] == named and not rep["unexplained"]
     if hidden == "heading_bias":
         assert "speed_heterogeneity" in rep["steps"][0]["set_aside"]
+    assert rep["datasets"][0]["not_named"] is None
