@@ -300,10 +300,11 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
         for c in comps:
             x = _without_wild_replicates(sims[c][:, 0, :])  # (M, N)
             pred[c]["mean"][k] = np.nanmean(x, axis=0)
-            # Floored at 1e-4 of the level so a deterministic prediction (a nuisance fitted as 0)
-            # cannot turn a tiny mismatch into an infinite log-likelihood.
+            # Floored at the F statistics' resolution (_REL_RESOLUTION of the level) so a
+            # deterministic prediction (a nuisance fitted as 0) cannot turn a tiny mismatch into
+            # an infinite log-likelihood.
             var_i, pooled = _replicate_spread(x)
-            floor = (1e-4 * np.nanmean(np.abs(x))) ** 2
+            floor = float(_rel_floor(x))
             h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base, fitter.gs.library, model)
             pred[c]["sd"][k] = np.sqrt((var_i + floor) * (1 + h_track))
             pred[c]["sd_level"][k] = np.sqrt((pooled + floor) * (1 + h_level))
