@@ -206,3 +206,23 @@ def test_shrink_interval_inverts_the_bootstrap_and_covers_at_its_level():
     assert lo is not None and hi is not None and 0.85 < lo < 0.9 < hi < 0.95
     # A gap before that is not clearly above 0 (0.2 +- 0.2): no end.
     assert None in shrink_interval(0.2, 0.05, 0.2 + boot[:, 0] - 1.0, 0.05 + boot[:, 1] - 0.25)
+
+
+def test_held_out_density_is_gaussian_within_4_sd_and_linear_beyond():
+    """The held-out log-density against the normal's (scipy) within 4 predictive sds and a hand
+    computation beyond; one gross error moves a score by at most 4 per sd the prediction moves,
+    where the Gaussian would move it by the error's size (39 x: a slipped trial outweighing a
+    swarm)."""
+    from kilobot_twin.gap.workflow import _loglik_per_robot, log_density
+
+    sd = np.array([0.5, 2.0, 3.0])
+    z = np.linspace(-4, 4, 81)[:, None]
+    ref = norm.logpdf(z * sd, scale=sd) - norm.logpdf(0 * sd, scale=sd)
+    np.testing.assert_allclose(log_density(z, sd) - log_density(0 * z, sd), ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(log_density(np.array([5.0, -39.0]), 1.0), [-(4 * 5 - 8), -(4 * 39 - 8)])
+    np.testing.assert_allclose(log_density(3.0, 2.0) - log_density(3.0, 1.0), -np.log(2.0))
+    meas = {"speed": np.array([[0.0, 39.0]])}  # one trial, two robots; robot 1 a gross error
+    a = {"speed": {"mean": np.zeros((1, 2)), "sd": np.ones((1, 2))}}
+    b = {"speed": {"mean": np.array([[0.0, 1.0]]), "sd": np.ones((1, 2))}}
+    gain = _loglik_per_robot(meas, b, ["speed"]) - _loglik_per_robot(meas, a, ["speed"])
+    np.testing.assert_allclose(gain, [0.0, 4.0])
