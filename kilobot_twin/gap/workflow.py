@@ -130,24 +130,28 @@ def _f_trend(x):
 
 
 def _heading_dependence(v, h):
-    """Relative amplitude of speed's dependence on heading: pooled regression of each robot's
-    trial speeds, centred on that robot's mean (so per-robot speed differences do not count),
-    on cos and sin of the trial's mean heading."""
+    """Speed's dependence on heading, as an F ratio (its log): each robot's trial speeds and the
+    cos and sin of the trial's mean heading, centred on that robot's means (per-robot speed
+    differences and headings do not count), pooled regression of speed on the two; the
+    regression's mean square over the residual's. The data's own residual is the yardstick, so
+    the null does not rest on the fitted speed noise: as an amplitude (the regression's relative
+    size) it flagged 2 of 20 null datasets of the randomised synth evaluation (seeds 1017, 1019:
+    speed noise 1.5-1.9x nominal under 3-5 mm tracking noise, fitted as 0), z 6.9.
+    Works on (K, N) or (M, K, N)."""
     with np.errstate(all="ignore"):
-        mean = np.nanmean(v, axis=(-2, -1), keepdims=True)
-        v = (v - np.nanmean(v, axis=-2, keepdims=True)) / mean + 1.0
-    shp = v.shape[:-2]
-    v2 = v.reshape(shp + (-1,))
-    h2 = h.reshape(shp + (-1,))
-    out = np.empty(shp if shp else (1,))
-    vv_all = v2.reshape(-1, v2.shape[-1])
-    hh_all = h2.reshape(-1, h2.shape[-1])
-    for i in range(vv_all.shape[0]):
-        ok = np.isfinite(vv_all[i]) & np.isfinite(hh_all[i])
-        A = np.column_stack([np.ones(ok.sum()), np.cos(hh_all[i, ok]), np.sin(hh_all[i, ok])])
-        a, c, s = np.linalg.lstsq(A, vv_all[i, ok], rcond=None)[0]
-        out.reshape(-1)[i] = math.hypot(c, s) / a
-    return out.reshape(shp) if shp else out[0]
+        ok = np.isfinite(v) & np.isfinite(h)
+        cols = [np.where(ok, a, np.nan) for a in (v, np.cos(h), np.sin(h))]
+        dv, dc, ds = (np.nan_to_num(a - np.nanmean(a, axis=-2, keepdims=True)) for a in cols)
+
+        def S(a, b):
+            return (a * b).sum((-2, -1))
+
+        svv, scv, ssv, scc, sss, scs = S(dv, dv), S(dc, dv), S(ds, dv), S(dc, dc), S(ds, ds), S(dc, ds)
+        det = scc * sss - scs**2
+        ss_reg = np.where(det > 0, (sss * scv**2 - 2 * scs * scv * ssv + scc * ssv**2) / np.where(det > 0, det, 1), 0.0)
+        dof = ok.sum((-2, -1)) - (ok.sum(-2) > 0).sum(-1) - 2
+        ms_res = np.maximum((svv - ss_reg) / np.maximum(dof, 1), _rel_floor(np.where(ok, v, np.nan)))
+        return np.log(np.maximum(ss_reg / 2, 1e-300) / ms_res)
 
 
 def statistics(kind: str, s: dict, trials: int) -> dict:

@@ -226,3 +226,47 @@ def test_held_out_density_is_gaussian_within_4_sd_and_linear_beyond():
     b = {"speed": {"mean": np.array([[0.0, 1.0]]), "sd": np.ones((1, 2))}}
     gain = _loglik_per_robot(meas, b, ["speed"]) - _loglik_per_robot(meas, a, ["speed"])
     np.testing.assert_allclose(gain, [0.0, 4.0])
+
+
+def _heading_f_by_lstsq(v, h):
+    """log F of speed on heading within robots, by full and reduced least-squares fits: a dummy
+    per robot, plus cos and sin of the heading."""
+    K, N = v.shape
+    ok = np.isfinite(v) & np.isfinite(h)
+    kk, ii = np.nonzero(ok)
+    robots = np.unique(ii)
+    dummies = (ii[:, None] == robots[None, :]).astype(float)
+    full = np.column_stack([dummies, np.cos(h[ok]), np.sin(h[ok])])
+    y = v[ok]
+    rss = [np.sum((y - X @ np.linalg.lstsq(X, y, rcond=None)[0]) ** 2) for X in (dummies, full)]
+    dof = len(y) - len(robots) - 2
+    return np.log(((rss[0] - rss[1]) / 2) / (rss[1] / dof))
+
+
+def test_heading_dependence_is_an_f_ratio_within_robots():
+    """Against a second implementation (dummy regression), with a robot missing from a trial and
+    one seen in a single trial; under no dependence it is F(2, n - robots - 2) whatever the speed
+    noise (so a misfitted noise cannot flag it); a tilt (speed ~ 1 + 0.05 cos heading) is seen."""
+    from scipy.stats import f as f_dist, kstest
+
+    from kilobot_twin.gap.workflow import _heading_dependence
+
+    rng = np.random.default_rng(3)
+    K, N = 4, 12
+    h = rng.uniform(-np.pi, np.pi, (K, N))
+    v = 0.01 * (1 + 0.1 * rng.standard_normal(N)) + 0.0004 * rng.standard_normal((K, N))
+    v[1, 3] = np.nan
+    v[:3, 7] = np.nan
+    assert _heading_dependence(v, h) == pytest.approx(_heading_f_by_lstsq(v, h), abs=1e-9)
+    tilted = v * (1 + 0.05 * np.cos(h - 0.4))
+    assert _heading_dependence(tilted, h) == pytest.approx(_heading_f_by_lstsq(tilted, h), abs=1e-9)
+    M = 4000
+    hs = rng.uniform(-np.pi, np.pi, (M, K, N))
+    for noise in (0.0001, 0.001):
+        vs = 0.01 + noise * rng.standard_normal((M, K, N))
+        stat = _heading_dependence(vs, hs)
+        assert stat.shape == (M,)
+        # KS at 1 %: a wrong null distribution (e.g. an amplitude, which scales with the noise)
+        # is rejected at once over 4,000 draws
+        assert kstest(np.exp(stat), f_dist(2, K * N - N - 2).cdf).pvalue > 0.01
+    assert np.exp(_heading_dependence(tilted, h)) > f_dist(2, 44 - N - 2).ppf(0.999)  # 44 tracks seen
