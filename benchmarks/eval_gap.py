@@ -329,6 +329,14 @@ def _shrink(rows):
     named = [r for r in rows if r["named"]]
     ok = [r["shrink"]["value"] >= 0.8 and (r["shrink"]["ci95"][0] or -np.inf) > 0 for r in named]
     print(f"\ngap shrink >= 80 % with its 95 % interval excluding 0, in named cases: {_rate(ok)} (target >= 95 %)")
+    is_above = [bool(r["hidden"]) and all(r["sizes"][h] >= 1.5 * _mde_size(r, h) for h in r["hidden"]) for r in named]
+    print(f"  of them, every hidden effect >= 1.5x the report's MDE: {_rate(g for g, a in zip(ok, is_above) if a)}; "
+          f"misses (* = above):")
+    for r, good, a in zip(named, ok, is_above):
+        if not good:
+            lo, hi = ("open" if v is None else f"{v:.0%}" for v in r["shrink"]["ci95"])
+            print(f"   {'*' if a else ' '}{r['name']:52s} named {','.join(r['named'])}: shrink {r['shrink']['value']:.0%} "
+                  f"({lo} .. {hi})")
     by = defaultdict(list)
     for r in named:
         by[",".join(r["named"])].append(r["shrink"]["value"])
