@@ -492,8 +492,9 @@ def decide(scores: dict, resolves, rng: np.random.Generator, boot: int, library:
 
     Returns best, order (best then the rivals, runner-up first), both intervals (``ci_gain``:
     the bounds at 1 - ``gain_level`` and ``gain_level``; ``ci_diff``: 95 %), ``clear`` (1 and
-    2), ``resolved``, ``named`` and ``simplified`` (the extensions set aside for the simpler model
-    they contain, with the 95 % interval of their gain over it).
+    2), ``resolved``, ``named``, ``why_not`` (the first clause the best fails, None when named)
+    and ``simplified`` (the extensions set aside for the simpler model they contain, with the
+    95 % interval of their gain over it).
     """
     library = E.LIBRARY if library is None else library
     by_sum = sorted(scores, key=lambda k: -np.nansum(scores[k]))
@@ -535,8 +536,15 @@ def decide(scores: dict, resolves, rng: np.random.Generator, boot: int, library:
         why += "; " + "; ".join(f"{x['name']} scored higher but does not beat {x['instead']}, which it contains, clearly "
                                 f"(gain over it, 95 % CI {x['ci95'][0]:.1f} .. {x['ci95'][1]:.1f}): the simpler model is preferred"
                                 for x in simplified)
+    if not ci_gain[0] > 0:
+        why_not = f"its gain over the current model is not above 0 at the one-sided {gain_level:.0%} bound"
+    elif not ci_diff[0] > 0:
+        why_not = f"it does not beat the runner-up, {order[1]}, clearly (the 95 % interval of its gain over it reaches 0)"
+    else:
+        why_not = None if resolved else "adding it removes none of the flagged signals"
     return {"best": best, "order": order, "ci_gain": ci_gain, "ci_diff": ci_diff, "clear": clear,
-            "resolved": resolved, "named": clear and bool(resolved), "runner_up_reason": why, "simplified": simplified}
+            "resolved": resolved, "named": clear and bool(resolved), "why_not": why_not,
+            "runner_up_reason": why, "simplified": simplified}
 
 
 def _rivals(library: dict, best: str, other: str) -> bool:
@@ -633,17 +641,12 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
             + (f"; resolves {resolved or 'no flagged signal'}" if d["clear"] else ""))
         if not d["named"]:
             unexplained, unexplained_signals = True, [f["signal"] for f in flagged]
-            if not ci_gain[0] > 0:
-                why = f"its gain over the current model is not above 0 at the one-sided {gs.gain_level:.0%} bound"
-            elif not ci_diff[0] > 0:
-                why = f"it does not beat the runner-up, {order[1]}, clearly (the 95 % interval of its gain over it reaches 0)"
-            else:
-                why = "adding it removes none of the flagged signals"
             not_named = {"round": round_, "signals": unexplained_signals, "set_aside": aside, "best": best,
                          "scores": {k: float(np.nansum(v)) for k, v in scores.items()},
                          "ci_gain": [float(x) for x in ci_gain], "level": gs.gain_level,
                          "runner_up": order[1] if len(order) > 1 else None,
-                         "ci95_over_runner_up": [float(x) for x in ci_diff] if len(order) > 1 else None, "why": why}
+                         "ci95_over_runner_up": [float(x) for x in ci_diff] if len(order) > 1 else None,
+                         "why": d["why_not"]}
             break
         names = names + (best,)
         steps.append({

@@ -28,6 +28,7 @@ def test_clear_winner_that_resolves_is_named():
     d = decide(scores, lambda name: ["x:between_robots"], _rng(), 500)
     assert d["named"] and d["best"] == "a" and d["order"][1] == "b"
     assert d["ci_gain"][0] > 0 and d["ci_diff"][0] > 0
+    assert d["why_not"] is None
 
 
 def test_positive_sum_but_lower_bound_below_zero_is_not_named():
@@ -39,6 +40,7 @@ def test_positive_sum_but_lower_bound_below_zero_is_not_named():
     d = decide(scores, _never, _rng(), 1000)
     assert np.nansum(gain) > 0 and d["ci_gain"][0] < 0
     assert not d["named"] and not d["clear"]
+    assert "gain over the current model" in d["why_not"]
 
 
 def test_must_beat_the_runner_up_clearly():
@@ -50,6 +52,7 @@ def test_must_beat_the_runner_up_clearly():
     d = decide(scores, _never, _rng(), 1000)
     assert d["ci_gain"][0] > 0 and d["ci_diff"][0] < 0
     assert not d["named"]
+    assert d["why_not"].startswith(f"it does not beat the runner-up, {d['order'][1]}")
 
 
 def test_an_extension_of_the_best_is_not_its_runner_up_but_the_best_extension_must_win_clearly():
@@ -134,6 +137,7 @@ def test_a_clear_winner_that_resolves_nothing_is_not_named():
     scores = {"a": np.full(N, 5.0) + np.linspace(-1, 1, N), "b": np.zeros(N)}
     d = decide(scores, lambda name: [], _rng(), 500)
     assert d["clear"] and not d["named"]
+    assert d["why_not"] == "adding it removes none of the flagged signals"
 
 
 def test_family_wise_threshold():
