@@ -255,7 +255,7 @@ def _naming(rows):
         by[(r["kind"], r["case"])].append(r)
     for (kind, case), rs in by.items():
         lib = [h for h in rs[0]["hidden"] if h not in OUTSIDE]
-        above = [r for r in rs if lib and all(r["sizes"][h] >= 1.5 * _mde_size(r, h) for h in lib)]
+        above = [r for r in rs if _above_mde(r)]
         below = [r for r in rs if r not in above]
         hits = [exact(r["named"], lib) for r in above]
         wrong_free = [none_wrong(r["named"], lib) for r in below]
@@ -265,13 +265,19 @@ def _naming(rows):
     null = [r for r in rows if not r["hidden"]]
     outside = [r for r in rows if set(r["hidden"]) & OUTSIDE]
     hid = [r for r in rows if r["hidden"] and not set(r["hidden"]) & OUTSIDE]
-    above = [r for r in hid if all(r["sizes"][h] >= 1.5 * _mde_size(r, h) for h in r["hidden"])]
+    above = [r for r in hid if _above_mde(r)]
     below = [r for r in hid if r not in above]
     print(f"\n  targets: above MDE named exactly      {_rate(exact(r['named'], r['hidden']) for r in above)}  (>= 95 %)")
     print(f"           below MDE nothing wrong named {_rate(none_wrong(r['named'], r['hidden']) for r in below)}  (>= 95 %)")
     print(f"           null data: nothing named      {_rate(not r['named'] for r in null)}  (>= 95 %)")
     print(f"           outside the library: unexplained and nothing named "
           f"{_rate(r['unexplained'] and not r['named'] for r in outside)}  (>= 90 %)")
+
+
+def _above_mde(row) -> bool:
+    """Every hidden effect of the library is at least 1.5x the report's MDE (and there is one)."""
+    lib = [h for h in row["hidden"] if h not in OUTSIDE]
+    return bool(lib) and all(row["sizes"][h] >= 1.5 * _mde_size(row, h) for h in lib)
 
 
 def _mde_size(row, effect) -> float:
@@ -329,7 +335,7 @@ def _shrink(rows):
     named = [r for r in rows if r["named"]]
     ok = [r["shrink"]["value"] >= 0.8 and (r["shrink"]["ci95"][0] or -np.inf) > 0 for r in named]
     print(f"\ngap shrink >= 80 % with its 95 % interval excluding 0, in named cases: {_rate(ok)} (target >= 95 %)")
-    is_above = [bool(r["hidden"]) and all(r["sizes"][h] >= 1.5 * _mde_size(r, h) for h in r["hidden"]) for r in named]
+    is_above = [_above_mde(r) for r in named]
     print(f"  of them, every hidden effect >= 1.5x the report's MDE: {_rate(g for g, a in zip(ok, is_above) if a)}; "
           f"misses (* = above):")
     for r, good, a in zip(named, ok, is_above):
