@@ -274,3 +274,24 @@ def test_heading_dependence_is_an_f_ratio_within_robots():
         # is rejected at once over 4,000 draws
         assert kstest(np.exp(stat), f_dist(2, K * N - N - 2).cdf).pvalue > 0.01
     assert np.exp(_heading_dependence(tilted, h)) > f_dist(2, 44 - N - 2).ppf(0.999)  # 44 tracks seen
+
+
+def test_an_effect_resolves_only_the_kind_of_disagreement_it_accounts_for():
+    """Per-robot means account for robots that differ (between_robots), a line per robot also for
+    levels that move over trials (trial_trend), neither for a population level or for a speed
+    that depends on heading; and only in the summaries they predict. Written out by hand for the
+    library."""
+    from kilobot_twin.gap.effects import LIBRARY
+
+    table = {
+        "heading_bias": {"turn_rate:between_robots"},
+        "bias_drift": {"turn_rate:between_robots", "turn_rate:trial_trend"},
+        "speed_heterogeneity": {"speed:between_robots"},
+        "motion_noise": {"diffusion:between_robots"},
+        "sensor_gain": {"gain:between_robots", "offset:between_robots"},
+        "clock_drift": {"toggle_rate:between_robots"},
+    }
+    signals = {f"{s}:{t}" for s in ("turn_rate", "speed", "diffusion", "gain", "offset", "toggle_rate")
+               for t in ("between_robots", "trial_trend", "level", "heading_dependence")}
+    for name, effect in LIBRARY.items():
+        assert {s for s in signals if effect.explains(s)} == table[name], name
