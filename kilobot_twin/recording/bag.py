@@ -34,8 +34,8 @@ import yaml
 import numpy as np
 from mcap.data_stream import ReadDataStream, RecordBuilder
 from mcap.opcode import Opcode
-from mcap.records import (Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Message, Metadata, MetadataIndex, Schema,
-                          Statistics, SummaryOffset)
+from mcap.records import (Attachment, AttachmentIndex, Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Message,
+                          Metadata, MetadataIndex, Schema, Statistics, SummaryOffset)
 
 from .. import __version__
 from ..errors import ConfigError
@@ -697,9 +697,7 @@ def _record(s: _Scan, op: int, pos: int, payload) -> None:
     elif op == 0x0B:
         s.top.append((pos, _exact(Statistics, bytes(payload))))
     elif op == 0x08:
-        if len(payload) < 32:
-            raise _Bad("chunk index too short")
-        s.top.append((pos, ("chunk index", _U64.unpack_from(payload, 16)[0])))   # after start and end times
+        s.top.append((pos, ("chunk index", _exact(ChunkIndex, bytes(payload)).chunk_start_offset)))
     elif op == 0x05:
         if len(payload) < _MESSAGE_HEAD.size:
             raise _Bad("message record too short")
@@ -713,8 +711,26 @@ def _record(s: _Scan, op: int, pos: int, payload) -> None:
         s.summary_start, _offsets, s.summary_crc = struct.unpack_from("<QQI", payload, 0)
         s.footer_at = pos
     elif op == 0x0F:
+        _exact(DataEnd, bytes(payload))
         s.data_end = pos
-    # header, message/metadata/attachment indexes, attachments, summary offsets, data end: nothing to keep
+    elif op == 0x07:
+        if not _message_index_ok(payload):
+            raise _Bad("inconsistent message index record")
+    else:
+        # Header, attachment (and its index), metadata index, summary offset: nothing to keep, but
+        # their lengths are checked like any other record's, for a flipped length byte would
+        # otherwise carry the scan past intact records.
+        _exact(_OTHER[op], bytes(payload))
+
+
+_OTHER = {0x01: Header, 0x09: Attachment, 0x0A: AttachmentIndex, 0x0D: MetadataIndex, 0x0E: SummaryOffset}
+
+
+def _message_index_ok(payload) -> bool:
+    """A message index record's own length agrees with the record's: channel id, the entries'
+    byte length, then whole (time, offset) pairs."""
+    n = len(payload)
+    return n >= 6 and 6 + struct.unpack_from("<I", payload, 2)[0] == n and (n - 6) % 16 == 0
 
 
 def _resync(buf, start: int, s: _Scan) -> int:
@@ -736,7 +752,7 @@ def _resync(buf, start: int, s: _Scan) -> int:
                 if n != 20 or bytes(buf[pos + 29:pos + 37]) != MAGIC:
                     continue
             elif op == 0x07:
-                if n < 6 or 6 + struct.unpack_from("<I", payload, 2)[0] != n:
+                if not _message_index_ok(payload):
                     continue
             elif op == 0x0F:
                 if n != 4:

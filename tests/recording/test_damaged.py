@@ -81,6 +81,21 @@ def chunks_of(bag: Path) -> list[tuple[int, int, Counter, tuple[dict, set]]]:
     return out
 
 
+def chunk_records(record: bytes) -> list | None:
+    """The records inside one chunk record (opcode and length included), read with the mcap
+    library with its CRC checked; None when they do not decode."""
+    import io
+
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Chunk
+    from mcap.stream_reader import breakup_chunk
+
+    try:
+        return [repr(r) for r in breakup_chunk(Chunk.read(ReadDataStream(io.BytesIO(record[9:]))), validate_crc=True)]
+    except Exception:  # noqa: BLE001 - damaged bytes fail in any of the library's ways
+        return None
+
+
 def expected_after(kind: str, good: Path, dst: Path, seed: int) -> tuple[Counter, int]:
     """Messages per topic in the chunks that the damage did not touch (exact for these kinds) whose
     channel record survived, and the number of those whose channel record did not."""
@@ -91,8 +106,20 @@ def expected_after(kind: str, good: Path, dst: Path, seed: int) -> tuple[Counter
         keep = lambda a, b: b <= len(damaged)  # noqa: E731
     else:
         diff = [i for i in range(size) if damaged[i] != original[i]]
-        # Flips in a chunk's start/end time fields (bytes 9..25 of the record) harm nothing.
-        keep = lambda a, b: not any(a <= i < b and not a + 9 <= i < a + 25 for i in diff)  # noqa: E731
+
+        def keep(a: int, b: int) -> bool:
+            # Flips in a chunk's start/end time fields (bytes 9..25 of the record) harm nothing. A
+            # flip in the compressed records can leave them unchanged (a bit zstd does not use):
+            # intact when the mcap library decodes them, CRC checked, to the good chunk's records.
+            # Any other flip (opcode, lengths, sizes, CRC, compression name) damages the chunk.
+            data_at = a + 41 + struct.unpack_from("<I", original, a + 37)[0] + 8
+            hit = [i for i in diff if a <= i < b and not a + 9 <= i < a + 25]
+            if not hit:
+                return True
+            if any(i < data_at for i in hit):
+                return False
+            good_records = chunk_records(original[a:b])
+            return good_records is not None and chunk_records(damaged[a:b]) == good_records
     # A message is readable when its chunk is intact and its channel record is somewhere intact:
     # in an intact chunk, or in the summary (repeated there) when no damage reached the summary.
     # The footer (opcode, length, summary start, ...) ends 8 bytes before the file's end.
@@ -335,3 +362,32 @@ def test_recording_imports_only_lower_layers():
             assert not m.startswith(("rclpy", "geometry_msgs", "std_msgs", "sensor_msgs", "rerun")), (py.name, m)
             assert not any(m.startswith(f"..{up}") for up in ("ros", "nodes", "viewer", "gap", "experiments", "cli")), (
                 py.name, m)
+
+
+@pytest.mark.parametrize("opcode", [0x07, 0x08])
+def test_a_damaged_length_outside_chunks_does_not_hide_the_records_after_it(bags, opcode, tmp_path):
+    """The length of a record without a CRC (a message index between chunks, a chunk index in the
+    summary) damaged so that the record seems to run over the next chunk (over the footer): every
+    chunk is still read (counts from the mcap library, chunk by chunk, on the good file), the file
+    is still seen as finalised, and the note names the bytes skipped. Found by the damage matrix
+    on a recording where a flipped message-index length hid one intact chunk."""
+    good = bags["small"]
+    data = bytearray(mcap_path(good).read_bytes())
+    ends = [b for _a, b, _c, _d in chunks_of(good)]
+    footer_at = len(data) - 8 - 29
+    pos, target = 8, None
+    while pos < len(data) - 8:
+        n = struct.unpack_from("<Q", data, pos + 1)[0]
+        if data[pos] == opcode and target is None and pos > ends[2]:
+            target = pos
+            past = min([b for b in ends if b > pos + 9 + n] or [footer_at + 29])
+            struct.pack_into("<Q", data, pos + 1, past - pos - 9 + 1)
+        pos += 9 + n
+    assert target is not None
+    bag = tmp_path / "flip"
+    f = damage._copy(good, bag)
+    f.write_bytes(bytes(data))
+    reader = BagReader(bag, warn=False)
+    assert Counter(m.topic for m in reader.messages()) == sum((c for _a, _b, c, _d in chunks_of(good)), Counter())
+    assert reader.finalised
+    assert f"bytes {target}-" in reader.note and "inconsistent" in reader.note
