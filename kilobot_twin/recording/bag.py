@@ -594,6 +594,7 @@ class _Scan:
     summary_crc: int = 0
     summary_damaged: bool = False
     top: list = field(default_factory=list)             # (offset, record) outside chunks, to be checked
+    loose: list = field(default_factory=list)           # (from, to, message) outside chunks, to be checked
     data_end: int | None = None
     truncated_at: int | None = None
 
@@ -637,7 +638,20 @@ def _scan(buf) -> _Scan:
         s.records += 1
         pos = end
     _take_top_level(s, buf)
+    _take_loose_messages(s)
     return s
+
+
+def _take_loose_messages(s: _Scan) -> None:
+    """Messages outside chunks are MCAP's unchunked layout; they carry no CRC. In a file that
+    has chunks they are other records with a damaged opcode (a message index's 0x07 with one bit
+    flipped is a plausible message on a real channel), so they are skipped there."""
+    if not (s.chunk_offsets or s.bad_chunks):
+        s.messages.extend(m for _a, _b, m in s.loose)
+        return
+    for a, b, _m in s.loose:
+        s.skipped.append((a, b, "a message record outside the chunks of a chunked file"))
+    s.skipped.sort()
 
 
 def _take_top_level(s: _Scan, buf) -> None:
@@ -701,9 +715,12 @@ def _record(s: _Scan, op: int, pos: int, payload) -> None:
     elif op == 0x05:
         if len(payload) < _MESSAGE_HEAD.size:
             raise _Bad("message record too short")
+        if s.data_end is not None:
+            # The summary holds no messages (MCAP spec): this is another record with a flipped opcode.
+            raise _Bad("message record after the data end")
         cid, seq, log, pub = _MESSAGE_HEAD.unpack_from(payload, 0)
-        s.messages.append(Message(channel_id=cid, sequence=seq, log_time=log, publish_time=pub,
-                                  data=bytes(payload[_MESSAGE_HEAD.size:])))
+        s.loose.append((pos, pos + 9 + len(payload), Message(channel_id=cid, sequence=seq, log_time=log,
+                                                             publish_time=pub, data=bytes(payload[_MESSAGE_HEAD.size:]))))
     elif op == 0x02:
         if len(payload) != 20:
             raise _Bad("footer of the wrong length")

@@ -391,3 +391,46 @@ def test_a_damaged_length_outside_chunks_does_not_hide_the_records_after_it(bags
     assert Counter(m.topic for m in reader.messages()) == sum((c for _a, _b, c, _d in chunks_of(good)), Counter())
     assert reader.finalised
     assert f"bytes {target}-" in reader.note and "inconsistent" in reader.note
+
+
+def test_an_opcode_flipped_to_message_is_not_read_as_a_message(bags, tmp_path):
+    """A message index (0x07) between chunks and a channel record (0x04) in the summary, each with
+    one opcode bit flipped to 0x05, parse as plausible messages (a real channel id, a real time).
+    A chunked file holds its messages in chunks (and its summary none), so the reader skips them
+    and names their bytes; the counts are the mcap library's, chunk by chunk, on the good file."""
+    good = bags["small"]
+    data = bytearray(mcap_path(good).read_bytes())
+    pos, flipped = 8, {}
+    while pos < len(data) - 8:
+        n = struct.unpack_from("<Q", data, pos + 1)[0]
+        if data[pos] in (0x07, 0x04) and data[pos] not in flipped and pos > 8 + 4096:
+            flipped[data[pos]] = pos
+            data[pos] = 0x05
+        pos += 9 + n
+    assert set(flipped) == {0x07, 0x04}
+    bag = tmp_path / "op"
+    damage._copy(good, bag).write_bytes(bytes(data))
+    reader = BagReader(bag, warn=False)
+    assert Counter(m.topic for m in reader.messages()) == sum((c for _a, _b, c, _d in chunks_of(good)), Counter())
+    assert all(f"bytes {p}-" in reader.note for p in flipped.values()), reader.note
+
+
+def test_an_unchunked_file_reads_its_messages(tmp_path):
+    """MCAP's unchunked layout (messages outside chunks, written by the mcap library) is read
+    whole: the rule above applies to chunked files only."""
+    from mcap.writer import Writer
+
+    from kilobot_twin.recording.schemas import ros2msg_schema
+
+    bag = tmp_path / "flat"
+    bag.mkdir()
+    with open(mcap_path(bag), "wb") as f:
+        w = Writer(f, use_chunking=False)
+        w.start(profile="ros2", library="test")
+        sid = w.register_schema("std_msgs/msg/Float64", "ros2msg", ros2msg_schema("std_msgs/msg/Float64").encode())
+        cid = w.register_channel("/x", "cdr", sid)
+        for k in range(7):
+            w.add_message(cid, log_time=k, publish_time=k, sequence=k, data=b"\x00\x01\x00\x00" + struct.pack("<d", k))
+        w.finish()
+    reader = BagReader(bag, warn=False)
+    assert reader.counts() == {"/x": 7} and not reader.damaged
