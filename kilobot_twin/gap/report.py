@@ -66,7 +66,7 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
         step = max(1, int(np.ceil(len(x) / 20)))  # at most ~20 labels
         axes[0].set_xticks(x[::step], [str(r) for r in s["robots"]][::step])
         axes[0].set_xlabel("robot")
-        axes[0].set_ylabel("mean z^2 of held-out summaries")
+        axes[0].set_ylabel("held-out deviance per summary\n(z$^2$, linear beyond 4 sd)")
         axes[0].set_title("per-robot residuals")
         axes[0].legend()
         sh = s["gap_shrink"]
@@ -81,7 +81,7 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
                             label=lab if g == 0 else None)
         axes[1].set_xticks(range(len(groups)), [g[0] for g in groups], fontsize=8)
         axes[1].axhline(0, color="k", lw=0.5)
-        axes[1].set_ylabel("gap (excess mean z^2, 0 = model noise)")
+        axes[1].set_ylabel("gap (excess deviance per summary,\n0 = model noise)")
         axes[1].set_title(f"held-out gap, 95 % intervals; shrink {100 * sh['value']:.0f} %")
         axes[1].legend(fontsize=7)
         rounds = [(st["scores"], f"step {i + 1}: named {st['name']}", None) for i, st in enumerate(s["steps"])]

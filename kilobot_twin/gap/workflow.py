@@ -16,8 +16,8 @@
    best is named only if its gain over the current model and over the runner-up both have a
    95 % interval above zero. Otherwise the disagreement is ``unexplained``.
 4. **Add** it: its per-robot parameters, fitted on all trials, go into the model.
-5. **Show the gap shrink**: on held-out trials, the excess mean squared z-score of measured
-   summaries against simulations of the base and of the final model (0 = as good as the
+5. **Show the gap shrink**: on held-out trials, the excess mean deviance (squared z-score, linear
+   beyond 4 sd: :func:`deviance`) of measured summaries against simulations of the base and of the final model (0 = as good as the
    model's own predictive spread, which a right model is in expectation), with 95 % bootstrap
    intervals over robots. Repeat from 2.
 """
@@ -365,6 +365,20 @@ def log_density(z, sd):
     return -np.where(a <= HUBER_K, 0.5 * a * a, HUBER_K * a - 0.5 * HUBER_K**2) - np.log(sd)
 
 
+def deviance(z):
+    """A held-out summary's deviance, -2 x its :func:`log_density` above that of a perfect
+    prediction: z^2 within ``HUBER_K`` predictive sds, 2 k |z| - k^2 beyond. The gap is its excess
+    over a right model's mean (:data:`DEVIANCE_MEAN`), so one gross error (z = 39: 296, not 1,521)
+    does not outweigh a swarm, as it no longer does in the scores."""
+    a = np.abs(z)
+    return np.where(a <= HUBER_K, a * a, 2.0 * HUBER_K * a - HUBER_K**2)
+
+
+#: E[deviance(Z)] for Z ~ N(0, 1): 2 Phi(k) - 1 + 2 k phi(k) - 2 k^2 (1 - Phi(k)) (1 - 7e-6 at k = 4).
+DEVIANCE_MEAN = (math.erf(HUBER_K / math.sqrt(2)) + 2 * HUBER_K * math.exp(-HUBER_K**2 / 2) / math.sqrt(2 * math.pi)
+                 - HUBER_K**2 * math.erfc(HUBER_K / math.sqrt(2)))
+
+
 def _loglik_per_robot(meas, pred, comps):
     """Sum over held-out trials and components of the held-out log-density
     (:func:`log_density`) of the measured summaries, per robot."""
@@ -376,7 +390,8 @@ def _loglik_per_robot(meas, pred, comps):
 
 
 def _gap(meas, pred, yard, comps, robots=None, parts=("track", "own", "level")) -> float:
-    """The gap: held-out prediction error in noise units, minus 1 (0 = as good as the model's noise).
+    """The gap: held-out prediction error in noise units, the mean :func:`deviance` (z^2 within
+    ``HUBER_K`` sds, linear beyond) minus a right model's mean (0 = as good as the model's noise).
 
     Three equally weighted parts, each 0 in expectation for a model that reproduces the data
     (spreads are predictive: the model's noise plus the estimation error of what was fitted on
@@ -402,12 +417,14 @@ def _gap(meas, pred, yard, comps, robots=None, parts=("track", "own", "level")) 
             with np.errstate(all="ignore"):
                 extra = np.nanvar(m - mu, axis=1) / yard[c]["sd_level"] ** 2
             m, mu, sd, sd_own = m[:, robots], mu[:, robots], sd[:, robots], sd_own[:, robots]
-        track.append(((m - mu) / sd) ** 2)
-        own.append(((m - mu) / sd_own) ** 2)
-        n = np.isfinite(m).sum(axis=1)
-        level.append(((np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (yard[c]["sd_level"] / np.sqrt(n))) ** 2 - extra)
+        with np.errstate(invalid="ignore"):
+            track.append(deviance((m - mu) / sd))
+            own.append(deviance((m - mu) / sd_own))
+            n = np.isfinite(m).sum(axis=1)
+            level.append(deviance((np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (yard[c]["sd_level"] / np.sqrt(n)))
+                         - extra)
     have = {"track": track, "own": own, "level": level}
-    return float(np.mean([np.nanmean(np.stack(have[p])) - 1.0 for p in parts]))
+    return float(np.mean([np.nanmean(np.stack(have[p])) - DEVIANCE_MEAN for p in parts]))
 
 
 def shrink_interval(before: float, after: float, before_boot, after_boot, level: float = 0.95) -> list:
@@ -447,7 +464,7 @@ def _residuals(meas, base, final, comps):
     """Per-robot held-out residuals of each model, in units of the final model's spread (for plots)."""
     out = {}
     for name, pred in (("before", base), ("after", final)):
-        z = [np.nanmean(((meas[c] - pred[c]["mean"]) / final[c]["sd"]) ** 2, axis=0) for c in comps]
+        z = [np.nanmean(deviance((meas[c] - pred[c]["mean"]) / final[c]["sd"]), axis=0) for c in comps]
         out[name] = np.mean(z, axis=0)
     return out
 
@@ -694,7 +711,8 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
     for j, st in enumerate(steps):
         st["gap_after"] = _gap(meas, pred_cache[names[: j + 1]], pred_final, comps)
     metric = ("held-out prediction error (leave-one-trial-out) of the summaries (" + ", ".join(comps)
-              + "): mean z^2 - 1 per track (final model's spread), per track (own spread) and per trial level; "
+              + "): mean deviance (z^2 within 4 sd, 2k|z| - k^2 beyond) minus a right model's, per track (final "
+              "model's spread), per track (own spread) and per trial level; "
               "spreads are predictive (simulated noise + estimation error of the fitted parameters)")
     section = {
         "dataset": str(ds.path), "kind": kind, "robots": [int(r) for r in cond.robot_ids], "trials": cond.trials,

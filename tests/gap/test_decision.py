@@ -232,6 +232,33 @@ def test_held_out_density_is_gaussian_within_4_sd_and_linear_beyond():
     np.testing.assert_allclose(gain, [0.0, 4.0])
 
 
+def test_gap_is_the_excess_held_out_deviance_and_one_gross_error_counts_linearly():
+    """The gap's unit, per summary, is twice scipy's Huber loss at 4 sds (z^2 within, 8 |z| - 16
+    beyond); its zero is a right model's mean, by numerical integration against the normal. A
+    right model's gap (normal z, by another generator than the workflow's) is 0 within 4 of its
+    sds; one gross error (z = 39) adds (8 x 39 - 16) / n, not 39^2 / n (a slipped trial that set
+    the headline gap of a well-explained dataset: 110 before and after on synth seed 1014)."""
+    from scipy.integrate import quad
+    from scipy.special import huber
+
+    from kilobot_twin.gap.workflow import DEVIANCE_MEAN, _gap, deviance
+
+    z = np.linspace(-50, 50, 2001)
+    np.testing.assert_allclose(deviance(z), 2 * huber(4.0, z), rtol=1e-12, atol=1e-12)
+    mean = 2 * quad(lambda t: 2 * huber(4.0, t) * norm.pdf(t), 0, np.inf, epsabs=1e-13)[0]
+    assert DEVIANCE_MEAN == pytest.approx(mean, abs=1e-9)
+    K, n = 4, 500
+    zz = np.random.RandomState(11).standard_normal((K, n))   # the legacy generator, not the workflow's
+    pred = {"speed": {"mean": np.zeros((K, n)), "sd": np.ones((K, n)), "sd_level": np.ones(K)}}
+    right = _gap({"speed": zz}, pred, pred, ["speed"], parts=("track",))
+    sd = np.sqrt(quad(lambda t: (2 * huber(4.0, t) - mean) ** 2 * norm.pdf(t), -np.inf, np.inf)[0] / zz.size)
+    assert abs(right) < 4 * sd
+    slipped = zz.copy()
+    slipped[2, 7] = 39.0
+    moved = _gap({"speed": slipped}, pred, pred, ["speed"], parts=("track",)) - right
+    assert moved == pytest.approx((8 * 39 - 16 - zz[2, 7] ** 2) / zz.size, rel=1e-9)
+
+
 def _heading_f_by_lstsq(v, h):
     """log F of speed on heading within robots, by full and reduced least-squares fits: a dummy
     per robot, plus cos and sin of the heading."""
