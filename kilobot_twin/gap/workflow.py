@@ -357,14 +357,6 @@ def _without_wild_replicates(x, k: float = 10.0):
 HUBER_K = 4.0
 
 
-def log_density(z, sd):
-    """Held-out log-density of a summary at z predictive sds from its predicted mean, predictive
-    sd ``sd``: -z^2 / 2 within ``HUBER_K``, -k |z| + k^2 / 2 beyond (the same constant for every
-    model, so it is left out), minus log sd."""
-    a = np.abs(z)
-    return -np.where(a <= HUBER_K, 0.5 * a * a, HUBER_K * a - 0.5 * HUBER_K**2) - np.log(sd)
-
-
 def deviance(z):
     """A held-out summary's deviance, -2 x its :func:`log_density` above that of a perfect
     prediction: z^2 within ``HUBER_K`` predictive sds, 2 k |z| - k^2 beyond. The gap is its excess
@@ -372,6 +364,13 @@ def deviance(z):
     does not outweigh a swarm, as it no longer does in the scores."""
     a = np.abs(z)
     return np.where(a <= HUBER_K, a * a, 2.0 * HUBER_K * a - HUBER_K**2)
+
+
+def log_density(z, sd):
+    """Held-out log-density of a summary at z predictive sds from its predicted mean, predictive
+    sd ``sd``: -z^2 / 2 within ``HUBER_K``, -k |z| + k^2 / 2 beyond (the same constant for every
+    model, so it is left out), minus log sd; that is -:func:`deviance` / 2 - log sd."""
+    return -0.5 * deviance(z) - np.log(sd)
 
 
 #: E[deviance(Z)] for Z ~ N(0, 1): 2 Phi(k) - 1 + 2 k phi(k) - 2 k^2 (1 - Phi(k)) (1 - 7e-6 at k = 4).
@@ -417,12 +416,10 @@ def _gap(meas, pred, yard, comps, robots=None, parts=("track", "own", "level")) 
             with np.errstate(all="ignore"):
                 extra = np.nanvar(m - mu, axis=1) / yard[c]["sd_level"] ** 2
             m, mu, sd, sd_own = m[:, robots], mu[:, robots], sd[:, robots], sd_own[:, robots]
-        with np.errstate(invalid="ignore"):
-            track.append(deviance((m - mu) / sd))
-            own.append(deviance((m - mu) / sd_own))
-            n = np.isfinite(m).sum(axis=1)
-            level.append(deviance((np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (yard[c]["sd_level"] / np.sqrt(n)))
-                         - extra)
+        track.append(deviance((m - mu) / sd))
+        own.append(deviance((m - mu) / sd_own))
+        n = np.isfinite(m).sum(axis=1)
+        level.append(deviance((np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (yard[c]["sd_level"] / np.sqrt(n))) - extra)
     have = {"track": track, "own": own, "level": level}
     return float(np.mean([np.nanmean(np.stack(have[p])) - DEVIANCE_MEAN for p in parts]))
 
