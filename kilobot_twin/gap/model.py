@@ -76,7 +76,7 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         x, y = summaries.mask_before_onset(x, y, noise)
         x, y = x[..., ::q], y[..., ::q]
         observed = np.isfinite(x)
-        s = summaries.motion(x, y, dt_s)
+        s = summaries.motion(x, y, dt_s, wander_lags_s=summaries.wander_lags(noise))
         start = _start_poses(x, y, dt_s)
         cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed, start, noise,
                           forward_speed_m_s=float(ds.meta.get("nominal_speed_m_s", synth.FORWARD_SPEED_M_S)))
@@ -154,7 +154,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
             z += a
             z[hidden] = np.nan
             tracks.append(z)
-        s = summaries.motion(*tracks, cond.dt_s, threads=THREADS)
+        s = summaries.motion(*tracks, cond.dt_s, wander_lags_s=summaries.wander_lags(cond.tracking_noise_m), threads=THREADS)
     elif cond.kind == "light_sweep":
         sc = synth.light_scenario(cond.duration_s, cond.dt_s)
         res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, threads=THREADS)

@@ -29,7 +29,7 @@ def _ffill(a):
     return np.where(first, out, np.nan)
 
 
-def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0), speed_lags_s=(1.0, 5.0),
+def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, wander_lags_s=None, speed_lags_s=(1.0, 5.0),
            threads: int = 1) -> dict:
     """Turn rate, speed, heading diffusion and mean heading of every track.
 
@@ -37,9 +37,19 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0
     are unwrapped across tracking gaps by differencing consecutive *observed* headings, and
     ``turn_rate`` is the least-squares slope of the unwrapped heading against time (rad/s,
     counter-clockwise positive). ``speed`` is the mean lagged displacement over the lag (m/s).
-    ``diffusion`` (rad^2/s) is the growth rate of the detrended heading's mean squared change
-    between the two ``msd_lags_s``: tracking noise adds the same constant at both lags and
-    cancels, the robot's heading noise (sigma_omega^2 per second) does not.
+    ``diffusion`` (rad^2/s) measures the heading noise by the track's sideways wander
+    (:func:`wander_lags`): the second difference of position over s seconds,
+    ``p(t + s) - 2 p(t) + p(t - s)``, across the chord ``p(t + s) - p(t - s)``, centred on the
+    track's mean (a steady turn bends every stretch alike), has variance
+    ``2/3 v^2 sigma_omega^2 s^3 + 6 e^2`` for a heading that diffuses with intensity
+    sigma_omega^2 at speed v under white tracking noise of sd e per coordinate. The difference
+    of that variance at the two ``wander_lags_s`` over ``2/3 v^2 (s2^3 - s1^3)`` (v: the track's
+    ``speed``) estimates sigma_omega^2 (less 1.5 s2 / track length: centring takes out the
+    variance of the track's mean): tracking noise cancels, and speed noise, which moves a robot
+    along its path, does not count. It reads positions over seconds rather than 2 s
+    chord headings, whose error (2 mm of tracking noise over a 2.3 cm chord: 0.13 rad) swamped
+    the heading's own change: per track it separates robots whose sigma_omega differ by a factor
+    2 by 3.3 sd at 2 mm of tracking noise, the chord headings by 0.67 (``benchmarks/bench_wander.py``).
     ``heading`` is the circular mean heading. ``speed_diffusion`` (m^2/s) is the growth rate of the
     variance of the distance covered over ``speed_lags_s``: the speed noise's sigma_v^2. Tracks
     with fewer than 10 observed headings give NaN. (For single tracks with irregular sample times,
@@ -53,7 +63,9 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0
     y = np.asarray(y, dtype=np.float64)
     lead = x.shape[:-1]
     L = max(1, int(round(lag_s / dt_s)))
-    l1, l2 = (max(1, int(round(s / dt_s))) for s in msd_lags_s)
+    T = x.shape[-1]
+    w1, w2 = (max(1, int(round(s / dt_s))) for s in (wander_lags_s or wander_lags(0.002)))
+    w2 = max(min(w2, (T - 1) // 3), w1 + 1)  # at least three stretches of the longer lag per track
     s1, s2 = (max(1, int(round(s / dt_s))) for s in speed_lags_s)
     R = int(np.prod(lead))
     out = np.empty((R, 5))
@@ -62,7 +74,7 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0
     tracks = _compiled_tracks()
 
     def rows(r0, r1):
-        tracks(xr[r0:r1], yr[r0:r1], L, l1, l2, s1, s2, float(dt_s), out[r0:r1])
+        tracks(xr[r0:r1], yr[r0:r1], L, w1, w2, s1, s2, float(dt_s), out[r0:r1])
 
     # Tracks are independent and the compiled pass releases the GIL: threads share the rows.
     engine.share(rows, R, threads)
@@ -73,13 +85,24 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, msd_lags_s=(5.0, 20.0
 _MOTION_KEYS = ("turn_rate", "speed", "diffusion", "heading", "speed_diffusion")
 
 
-def _motion_tracks(x, y, L, l1, l2, s1, s2, dt, out):  # pragma: no cover - compiled
+def wander_lags(tracking_noise_m: float) -> tuple:
+    """The two lags (s) of the ``diffusion`` summary's sideways wander (:func:`motion`), for a
+    tracker of this noise: 1 s (tracking noise alone, nearly) and the lag where the wander of a
+    Kilobot (1.1 cm/s) with the nominal heading noise (0.01 rad/sqrt(s)) has grown to about the
+    tracking noise's share, 10 s x sqrt(e / 2 mm) within 4 .. 20 s. Longer lags see more wander
+    but fewer independent stretches per track; this one gave the most separation between robots
+    whose noise differs, per track, from 0.5 to 8 mm (``benchmarks/bench_wander.py``). Measured and
+    simulated tracks of a dataset are summarised with the same lags (the data's fitted noise)."""
+    e = max(float(tracking_noise_m), 0.0)
+    return 1.0, float(np.clip(10.0 * np.sqrt(e / 0.002), 4.0, 20.0))
+
+
+def _motion_tracks(x, y, L, w1, w2, s1, s2, dt, out):  # pragma: no cover - compiled
     """:func:`motion` for tracks ``x``, ``y`` (R, T) into ``out`` (R, 5), in the order of ``_MOTION_KEYS``."""
     R, T = x.shape
     Th = max(T - L, 0)
     u = np.empty(Th)
     ok = np.empty(Th, np.bool_)
-    res = np.empty(Th)
     dist = np.empty(T)
     for r in range(R):
         n = 0
@@ -130,17 +153,21 @@ def _motion_tracks(x, y, L, l1, l2, s1, s2, dt, out):  # pragma: no cover - comp
                 sxy += dtj * (u[j] - hm)
                 sxx += dtj * dtj
         turn = sxy / max(sxx, 1e-12)
-        for j in range(Th):
-            res[j] = u[j] - hm - turn * (j * dt - tm) if ok[j] else 0.0
-        msd = np.zeros(2)
-        for q, lag in enumerate((l1, l2)):
-            m, ss = 0, 0.0
-            for j in range(Th - lag):
-                if ok[j] and ok[j + lag]:
-                    d = res[j + lag] - res[j]
-                    ss += d * d
+        wander = np.zeros(2)
+        for q, w in enumerate((w1, w2)):
+            m, ls, ss = 0, 0.0, 0.0
+            for j in range(w, T - w):
+                cx = x[r, j + w] - x[r, j - w]
+                cy = y[r, j + w] - y[r, j - w]
+                c = math.hypot(cx, cy)
+                d2x = cx - 2.0 * (x[r, j] - x[r, j - w])
+                d2y = cy - 2.0 * (y[r, j] - y[r, j - w])
+                if math.isfinite(c) and math.isfinite(d2x) and math.isfinite(d2y) and c > 0.0:
+                    side = (d2y * cx - d2x * cy) / c  # the second difference across the chord
+                    ls += side
+                    ss += side * side
                     m += 1
-            msd[q] = ss / max(m, 1)
+            wander[q] = (ss - ls * ls / m) / (m - 1) if m >= 10 else np.nan
         var = np.zeros(2)
         for q, lag in enumerate((s1, s2)):
             m, ss = 0, 0.0
@@ -157,7 +184,8 @@ def _motion_tracks(x, y, L, l1, l2, s1, s2, dt, out):  # pragma: no cover - comp
             var[q] = sq / (nd - 1)
         out[r, 0] = turn
         out[r, 1] = dist_sum / n / (L * dt)
-        out[r, 2] = (msd[1] - msd[0]) / ((l2 - l1) * dt)
+        v = out[r, 1]
+        out[r, 2] = (wander[1] - wander[0]) / (2.0 / 3.0 * v * v * dt**3 * (w2**3 - w1**3)) if v > 0.0 else np.nan
         out[r, 3] = math.atan2(s_sum, c_sum)
         out[r, 4] = (var[1] - var[0]) / ((s2 - s1) * dt)
 
