@@ -38,6 +38,11 @@ def test_clock_drift_at_the_stated_size_is_flagged_about_80_percent_of_the_time(
     assert abs(hits / D - 0.8) <= 0.12, hits / D
 
 
+def _log_scale_by_hand(x):
+    """The noise summaries' log scale, written out: asinh(x / (2 m)), m the median |x| of the dataset."""
+    return np.arcsinh(x / (2 * np.nanmedian(np.abs(x))))
+
+
 def _named_by_loop(x, null_mean, threshold, base_absorbs, rng, noise=None, s_w2=1.0):
     """A second implementation of one emulated dataset's fate, robot by robot and fold by fold,
     through the workflow's own naming rule (decide). ``noise = (level, f)``: robots differing
@@ -46,7 +51,7 @@ def _named_by_loop(x, null_mean, threshold, base_absorbs, rng, noise=None, s_w2=
     from kilobot_twin.gap.workflow import _f_between, decide
 
     K, N = x.shape
-    if not _f_between(x) - null_mean > threshold:
+    if not _f_between(x if noise is None else _log_scale_by_hand(noise[0] + x)) - null_mean > threshold:
         return False
     gain = np.zeros(N)
     for k in range(K):
@@ -96,7 +101,10 @@ def test_naming_power_against_a_loop_through_the_naming_rule(base_absorbs, noise
     eps[:, ~seen] = np.nan
     effect = rng.standard_normal((R, 1, N))
     state = rng.bit_generator.state  # decide draws the bootstrap indices from here
-    null_mean = float(np.nanmean(_f_between(eps)))
+    if noise is None:
+        null_mean = float(np.nanmean(_f_between(eps)))
+    else:  # each dataset on its own scale
+        null_mean = float(np.nanmean([_f_between(_log_scale_by_hand(noise[0] + e)) for e in eps]))
     named = []
     for r in range(R):
         rng.bit_generator.state = state
@@ -195,3 +203,38 @@ def test_drift_naming_power_against_a_loop_through_the_naming_rule():
     # 3 binomial sds of that many coin flips.
     tol = 3 * np.sqrt(max(edge, 1) * 0.25) / R
     assert p[1] == pytest.approx(np.mean(named), abs=tol), (p[1], np.mean(named), tol)
+
+
+def test_robots_that_differ_in_noise_are_tested_on_a_log_scale():
+    """Per-track noise summaries of a generator of the test's own: each robot's intensity
+    sigma_i^2 = exp(2 x 0.8 z_i) (synth's spread of ln sigma_omega), each track's summary that
+    times a chi-square with 3 dof over 3 (a variance estimate), plus an additive floor (tracking
+    noise that does not cancel), 12 robots x 4 trials, 400 datasets. The workflow's statistic for
+    diffusion between robots, thresholded at the family-wise level (alpha 0.01 over 6 tests) of its
+    own null (identical robots), flags 92 % here; the F ratio on the summary itself 67 %: the
+    noisiest robot's scatter fills its within-robot mean square. Asserted: at least 85 % (5
+    binomial sds below), at least 10 points over the plain F ratio (the difference's sd is 2.7
+    points), and at most 2 % of the null (the level is 0.17 %)."""
+    from scipy.stats import norm
+
+    from kilobot_twin.gap.workflow import _f_between, statistics
+
+    rng = np.random.default_rng(2)
+    K, N, R = 4, 12, 400
+
+    def draw(spread):
+        sig2 = np.exp(2 * spread * rng.standard_normal((R, 1, N)))
+        return sig2 * rng.chisquare(3, (R, K, N)) / 3 + 0.1 * rng.standard_normal((R, K, N))
+
+    def workflow_stat(x):
+        s = {k: x for k in ("turn_rate", "speed", "diffusion", "heading", "speed_diffusion")}
+        return statistics("motion", s, K)["diffusion:between_robots"][0]
+
+    null, alt = draw(0.0), draw(0.8)
+    rates = {}
+    for name, stat in (("workflow", workflow_stat), ("plain", _f_between)):
+        n0, a = stat(null), stat(alt)
+        thr = n0.mean() + norm.isf(0.01 / 6) * n0.std(ddof=1)
+        rates[name] = (np.mean(n0 > thr), np.mean(a > thr))
+    assert rates["workflow"][0] <= 0.02 and rates["workflow"][1] >= 0.85, rates
+    assert rates["workflow"][1] >= rates["plain"][1] + 0.10, rates
