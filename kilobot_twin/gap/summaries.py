@@ -159,11 +159,11 @@ def _motion_tracks(x, y, L, w1, w2, s1, s2, dt, out):  # pragma: no cover - comp
             for j in range(w, T - w):
                 cx = x[r, j + w] - x[r, j - w]
                 cy = y[r, j + w] - y[r, j - w]
-                c = math.hypot(cx, cy)
+                c2 = cx * cx + cy * cy
                 d2x = cx - 2.0 * (x[r, j] - x[r, j - w])
                 d2y = cy - 2.0 * (y[r, j] - y[r, j - w])
-                if math.isfinite(c) and math.isfinite(d2x) and math.isfinite(d2y) and c > 0.0:
-                    side = (d2y * cx - d2x * cy) / c  # the second difference across the chord
+                if c2 > 0.0 and math.isfinite(c2) and math.isfinite(d2x) and math.isfinite(d2y):
+                    side = (d2y * cx - d2x * cy) / math.sqrt(c2)  # the second difference across the chord
                     ls += side
                     ss += side * side
                     m += 1
