@@ -126,6 +126,11 @@ def _log_scale(x):
         return np.arcsinh(x / (2.0 * np.where(m > 0, m, 1.0)))
 
 
+def _f_noise(x):
+    """F of robots over trials for a noise summary: :func:`_f_between` on :func:`_log_scale`."""
+    return _f_between(_log_scale(x))
+
+
 def _f_trend(x):
     """F of per-robot linear trends over trials against per-robot means; x (..., K, N)."""
     K = x.shape[-2]
@@ -176,7 +181,7 @@ def statistics(kind: str, s: dict, trials: int) -> dict:
             out["turn_rate:trial_trend"] = (_f_trend(s["turn_rate"]), 1)
         out["speed:between_robots"] = (_f_between(s["speed"]), 1)
         out["diffusion:level"] = (np.nanmean(s["diffusion"], axis=(-2, -1)), 2)
-        out["diffusion:between_robots"] = (_f_between(_log_scale(s["diffusion"])), 1)
+        out["diffusion:between_robots"] = (_f_noise(s["diffusion"]), 1)
         out["speed:heading_dependence"] = (_heading_dependence(s["speed"], s["heading"]), 1)
     elif kind == "light_sweep":
         out["gain:between_robots"] = (_f_between(s["gain"], _resolution(s, "gain")), 1)
@@ -351,9 +356,10 @@ def _replicate_spread(x):
 def _without_wild_replicates(x, k: float = 10.0):
     """Simulated replicates (M, N) with the wild ones NaN: farther than ``k`` robust sds (1.4826
     median absolute deviations) from the robot's median. A simulated track that is short and
-    gappy (the data's mask) now and then fails to unwrap its heading and gives a diffusion
-    thousands of times the rest; one such replicate in 30 would set the robot's predictive
-    spread, and through the pooled spread every robot's."""
+    gappy (the data's mask) now and then fails to unwrap its heading and gives a turn rate far
+    from the rest (the chord-heading diffusion of before gave thousands of times the rest); one
+    such replicate in 30 would set the robot's predictive spread, and through the pooled spread
+    every robot's."""
     with np.errstate(all="ignore"):
         med = np.nanmedian(x, axis=0)
         scale = 1.4826 * np.nanmedian(np.abs(x - med), axis=0)
@@ -815,16 +821,17 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
                 dev = np.where(seen, x - np.nanmean(x, axis=0), 0.0)
                 slope = (dk * dev).sum(0) / np.maximum((dk**2).sum(0), 1e-12)
                 s_w2 = float(((dev - slope * dk) ** 2).sum() / max(int((seen.sum(0) - 2).clip(0).sum()), 1))
-            else:
+            elif effect == "motion_noise":
                 k_eff = float(np.nanmean(seen.sum(0)))
-                s_w2 = max(E.within_var(x), _resolution(meas, comp) or 0.0)
-            if effect == "motion_noise":
                 # Robots that differ in noise scatter within themselves by more than the
                 # population's noise makes (a robot e^1.2 noisier scatters 11x as much), so the
                 # data's within-robot variance holds the effect: the emulation, which scales its
                 # noise by each robot's intensity, starts from the variance at the population's
                 # intensity, the base model's own (its simulated null; mean over replicates).
                 s_w2 = float(np.nanmean(E.within_var(null[comp])))
+            else:
+                k_eff = float(np.nanmean(seen.sum(0)))
+                s_w2 = max(E.within_var(x), _resolution(meas, comp) or 0.0)
             s_w2 = max(s_w2, float(_rel_floor(x)))
             tau_det = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
             level = float(np.nanmean(x))
@@ -908,14 +915,11 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
         k_mean = (np.where(seen, k, 0.0).sum(0)) / np.maximum(seen.sum(0), 1)
         effect = effect * (k - k_mean)
     idx = rng.integers(0, N, (boot, N))
-    stat = _f_trend if drift else _f_between
-    if noise is not None:  # as statistics() tests a noise summary: on a log scale
-        def stat(a):
-            return _f_between(_log_scale(a))
-        eps_stat = stat(noise[0] + eps)  # the population's level with its noise
-    else:
-        eps_stat = stat(eps)
-    null_mean = float(np.nanmean(eps_stat))
+    # A noise summary is tested as statistics() does, on a log scale: of the summary itself, the
+    # population's level plus each robot's departure from it.
+    stat = _f_noise if noise is not None else _f_trend if drift else _f_between
+    shift = noise[0] if noise is not None else 0.0
+    null_mean = float(np.nanmean(stat(shift + eps)))
     out = []
     for tau in taus:
         if noise is None:
@@ -925,7 +929,7 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
             sig = 2.0 * tau  # tau: sd of ln sigma_omega; the summary's noise share goes with sigma_omega^2
             r = np.exp(sig * effect - 0.5 * sig**2)
             x = level * (r - 1) + eps * np.sqrt(1 - f + f * r**2)
-        flagged = stat(x if noise is None else noise[0] + x) - null_mean > threshold
+        flagged = stat(shift + x) - null_mean > threshold
         gain, rival = _heldout_gain(x, drift, base_absorbs, noise=None if noise is None else (*noise, s_w2))
         lo = np.percentile(gain[:, idx].sum(-1), 100 * (1 - gain_level), axis=1)
         named = flagged & (lo > 0)
