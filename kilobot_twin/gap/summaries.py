@@ -118,7 +118,11 @@ def _motion_tracks(x, y, L, w1, w2, s1, s2, dt, out):  # pragma: no cover - comp
             if ok[j]:
                 h = math.atan2(dy, dx)
                 if seen:  # unwrap: the wrapped change since the last observed heading
-                    step = (h - last + math.pi) % (2 * math.pi) - math.pi
+                    step = h - last  # within (-2 pi, 2 pi): wrapped into [-pi, pi) without a modulo
+                    if step >= math.pi:
+                        step -= 2 * math.pi
+                    elif step < -math.pi:
+                        step += 2 * math.pi
                     # A chord that turned by over a quarter turn since the last one is a
                     # tracking error (a point centimetres off reverses a 2 cm chord), not the
                     # robot: refused, else the unwrapping slips by 2 pi. A new heading that
@@ -134,9 +138,15 @@ def _motion_tracks(x, y, L, w1, w2, s1, s2, dt, out):  # pragma: no cover - comp
             if ok[j]:
                 last = h
                 n += 1
-                dist_sum += math.hypot(dx, dy)
-                s_sum += math.sin(h)
-                c_sum += math.cos(h)
+                # |d| and the heading's sine and cosine from the chord itself (d > 0 where atan2 is
+                # defined by it); fewer transcendental calls than hypot, sin and cos.
+                d = math.sqrt(dx * dx + dy * dy)
+                dist_sum += d
+                if d > 0.0:
+                    s_sum += dy / d
+                    c_sum += dx / d
+                else:
+                    c_sum += 1.0  # atan2(0, 0) = 0
             u[j] = first + acc
             if ok[j]:
                 t_sum += j * dt
@@ -172,9 +182,11 @@ def _motion_tracks(x, y, L, w1, w2, s1, s2, dt, out):  # pragma: no cover - comp
         for q, lag in enumerate((s1, s2)):
             m, ss = 0, 0.0
             for j in range(T - lag):
-                d = math.hypot(x[r, j + lag] - x[r, j], y[r, j + lag] - y[r, j])
+                ex = x[r, j + lag] - x[r, j]
+                ey = y[r, j + lag] - y[r, j]
+                d = math.sqrt(ex * ex + ey * ey)
                 if math.isfinite(d):
-                    dist[m] = d  # kept for the second pass (hypot is most of this loop's cost)
+                    dist[m] = d  # kept for the second pass
                     ss += d
                     m += 1
             nd = max(m, 2)
