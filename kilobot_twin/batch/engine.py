@@ -49,12 +49,13 @@ def share(fn, n: int, threads: int, least: int = 64) -> None:
 
 def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, trials=None, robot_index=None,
              record_every: int = 0, poses=None, progress=None, coverage: bool | None = None,
-             threads: int = 1) -> sim.Result:
+             threads: int = 1, channels=sim.TRAJ_CHANNELS) -> sim.Result:
     """:func:`kilobot_twin.core.sim.simulate`, on the compiled kernel where :func:`compiled` says so
     (there in up to ``threads`` threads, each a share of the (run, robot) slots)."""
     if not compiled(scenario):
         return sim.simulate(scenario, traits, seed, runs=runs, trials=trials, robot_index=robot_index,
-                            record_every=record_every, poses=poses, progress=progress, coverage=coverage)
+                            record_every=record_every, poses=poses, progress=progress, coverage=coverage,
+                            channels=channels)
     st = sim.init_state(scenario, traits, seed, runs, trials, robot_index, poses)
     R, N = st.shape
     S = R * N
@@ -94,10 +95,14 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
 
     empty_f, empty_i = np.zeros((0, 0)), np.zeros((0, 0), dtype=np.int8)
     rec_args = (0, empty_f, empty_f, empty_f, empty_f, empty_i)
-    rec = sim.start_record(st, n, record_every)
+    rec = sim.start_record(st, n, record_every, channels)
     if rec is not None:
-        rec["led"][...] = st.led[..., None]  # no behaviour here drives the LED
-        rec_args = (int(record_every),) + tuple(rec[k].reshape(S, -1) for k in ("x", "y", "theta", "reading", "motion"))
+        if "led" in rec:
+            rec["led"][...] = st.led[..., None]  # no behaviour here drives the LED
+        # Channels not kept go to the kernel as (slots, 0) arrays, which it does not write.
+        rec_args = (int(record_every),) + tuple(rec[k].reshape(S, -1) if k in rec else np.zeros((S, 0), dtype=d)
+                                                for k, d in (("x", np.float64), ("y", np.float64), ("theta", np.float64),
+                                                             ("reading", np.float64), ("motion", np.int8)))
 
     # Report progress about 100 times a run, but give each kernel call at least ~1e5 robot-steps
     # (a call costs some tens of microseconds of argument checking).

@@ -147,6 +147,9 @@ def _loop(spec):
         # would load them again on every step.
         hx, hy = fp[F_HX], fp[F_HY]
         t0_l, t0_r = table[_FORWARD, 0], table[_FORWARD, 1]
+        # Trajectories not asked for come as (slots, 0) arrays and are not written.
+        keep_x, keep_y, keep_th = rec_x.shape[1] > 0, rec_y.shape[1] > 0, rec_th.shape[1] > 0
+        keep_r, keep_mot = rec_r.shape[1] > 0, rec_mot.shape[1] > 0
         for s in range(s0, s1):
             xs, ys, ths, tk = x[s], y[s], th[s], ticks[s]
             mo, rd = motion[s], reading[s]
@@ -303,11 +306,16 @@ def _loop(spec):
                 if record_every > 0:
                     if phase == 0:
                         j = (k + 1) // record_every
-                        rec_x[s, j] = xs
-                        rec_y[s, j] = ys
-                        rec_th[s, j] = ths
-                        rec_r[s, j] = rd
-                        rec_mot[s, j] = mo
+                        if keep_x:
+                            rec_x[s, j] = xs
+                        if keep_y:
+                            rec_y[s, j] = ys
+                        if keep_th:
+                            rec_th[s, j] = ths
+                        if keep_r:
+                            rec_r[s, j] = rd
+                        if keep_mot:
+                            rec_mot[s, j] = mo
                     phase += 1
                     if phase == record_every:
                         phase = 0

@@ -202,7 +202,8 @@ class Result:
     Summaries (each (R, N)): ``x, y, theta`` final pose; ``cost_m`` mean distance to the light
     centre over the last ``cost_window_steps`` steps; ``path_m`` path length; ``switches`` LED
     toggles; ``coverage_m2`` area of visited coverage cells (walled arenas); ``reading_mean``.
-    Trajectories (each (R, N, T)) at times ``t_s`` (T,): ``x, y, theta, led, reading, motion``.
+    Trajectories (each (R, N, T)) at times ``t_s`` (T,): ``x, y, theta, led, reading, motion``, or
+    those of the run's ``channels``.
     """
 
     summary: dict
@@ -213,14 +214,23 @@ class Result:
     order: np.ndarray | None = None  # (R, T') Kuramoto order parameter per step, blink only
 
 
+#: The trajectories a run can record, and their dtypes.
+TRAJ_CHANNELS = ("x", "y", "theta", "reading", "led", "motion")
+_TRAJ_DTYPES = {"x": np.float64, "y": np.float64, "theta": np.float64, "reading": np.float64, "led": np.int8,
+                "motion": np.int8}
+
+
 def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, trials=None, robot_index=None,
-             record_every: int = 0, poses=None, progress=None, coverage: bool | None = None) -> Result:
+             record_every: int = 0, poses=None, progress=None, coverage: bool | None = None,
+             channels=TRAJ_CHANNELS) -> Result:
     """Run a batch for ``scenario.n_steps`` steps.
 
     Parameters
     ----------
     record_every : int
         Keep trajectories every this many steps (0: summaries only, memory O(R N)).
+    channels : tuple of str
+        Which trajectories to keep (of :data:`TRAJ_CHANNELS`; fewer cost less memory).
     progress : callable(int) or None
         Called with the number of steps done since the last call (for progress bars).
     coverage : bool, optional
@@ -243,7 +253,7 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
 
         cov = Coverage(scenario.arena, (R, N))
         cov.mark(st.x, st.y)
-    rec = start_record(st, n, record_every)
+    rec = start_record(st, n, record_every, channels)
     is_blink = isinstance(scenario.behavior, Blink)
     needs_light = scenario.behavior.needs_light
     order = np.empty((R, n + 1)) if is_blink else None
@@ -275,14 +285,17 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
     return result(st, scenario, (st.x, st.y, st.theta), cost, path, switches, reading_sum, cov, rec, record_every, order)
 
 
-def start_record(st: SimState, n_steps: int, record_every: int) -> dict | None:
-    """Trajectory arrays, each (R, N, T), with sample 0 taken; None when ``record_every`` is 0."""
+def start_record(st: SimState, n_steps: int, record_every: int, channels=TRAJ_CHANNELS) -> dict | None:
+    """Trajectory arrays of ``channels``, each (R, N, T), with sample 0 taken; None when
+    ``record_every`` is 0."""
     if not record_every:
         return None
+    unknown = sorted(set(channels) - set(TRAJ_CHANNELS))
+    if unknown or not channels:
+        raise ValueError(f"channels: {unknown or 'none'} (choose one or more of {TRAJ_CHANNELS})")
     R, N = st.shape
     T = n_steps // record_every + 1
-    rec = {k: np.empty((R, N, T), dtype=np.float64) for k in ("x", "y", "theta", "reading")}
-    rec.update({k: np.empty((R, N, T), dtype=np.int8) for k in ("led", "motion")})
+    rec = {k: np.empty((R, N, T), dtype=_TRAJ_DTYPES[k]) for k in TRAJ_CHANNELS if k in channels}
     _record(rec, st, 0)
     return rec
 
@@ -296,14 +309,10 @@ def result(st: SimState, scenario: Scenario, pose, cost_sum, path, switches, rea
                "path_m": path, "switches": switches, "reading_mean": reading_sum / n, "bias": st.bias}
     if cov is not None:
         summary["coverage_m2"] = cov.area_m2()
-    t_s = None if rec is None else np.arange(rec["x"].shape[-1]) * record_every * scenario.dt_s
+    t_s = None if rec is None else np.arange(next(iter(rec.values())).shape[-1]) * record_every * scenario.dt_s
     return Result(summary=summary, t_s=t_s, traj=rec, runs=st.runs, robot_ids=st.robot_ids, order=order)
 
 
 def _record(rec, st, i):
-    rec["x"][..., i] = st.x
-    rec["y"][..., i] = st.y
-    rec["theta"][..., i] = st.theta
-    rec["reading"][..., i] = st.reading
-    rec["led"][..., i] = st.led
-    rec["motion"][..., i] = st.motion
+    for k, a in rec.items():
+        a[..., i] = getattr(st, k)

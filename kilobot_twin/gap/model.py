@@ -138,26 +138,32 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
         sc = synth.motion_scenario(cond.duration_s, cond.dt_s, floor_tilt, cond.forward_speed_m_s)
         x0, y0, th0 = (np.tile(a[trials], (M, 1)) for a in cond.start)
         res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, poses=(x0, y0, th0),
-                              threads=THREADS)
+                              threads=THREADS, channels=("x", "y"))
         T = mask.shape[-1]
         x, y = res.traj["x"][..., :T], res.traj["y"][..., :T]
-        if speed_trial_sd > 0:
-            f = 1.0 + speed_trial_sd * rng.standard_normal(x.shape[:-1] + (1,))
-            x = x[..., :1] + f * (x - x[..., :1])
-            y = y[..., :1] + f * (y - y[..., :1])
-        # Tracking noise, then the data's gaps; in place (the same values as x + noise * z).
+        f = 1.0 + speed_trial_sd * rng.standard_normal(x.shape[:-1] + (1,)) if speed_trial_sd > 0 else None
+        # The speed's trial jitter, tracking noise, then the data's gaps; in place (the same values
+        # as start + f (a - start) + noise * z, without temporaries the size of the tracks).
         hidden = ~mask
         tracks = []
         for a in (x, y):
             z = rng.standard_normal(mask.shape)
             z *= cond.tracking_noise_m
-            z += a
+            if f is None:
+                z += a
+            else:
+                a0 = a[..., :1].copy()
+                a -= a0
+                a *= f
+                a += a0
+                z += a
             z[hidden] = np.nan
             tracks.append(z)
         s = summaries.motion(*tracks, cond.dt_s, wander_lags_s=summaries.wander_lags(cond.tracking_noise_m), threads=THREADS)
     elif cond.kind == "light_sweep":
         sc = synth.light_scenario(cond.duration_s, cond.dt_s)
-        res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, threads=THREADS)
+        res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, threads=THREADS,
+                              channels=("reading",))
         T = mask.shape[-1]
         stim = np.broadcast_to(sc.light.v_value(res.t_s[:T]), mask.shape)
         s = summaries.light_sweep(np.where(mask, stim, np.nan), np.where(mask, res.traj["reading"][..., :T], np.nan))

@@ -103,6 +103,29 @@ def test_kernel_on_threads_equals_the_core(name):
     _assert_same(fast, sim.simulate(sc, sw, 5, runs=runs, trials=runs % 3, record_every=1))
 
 
+@pytest.mark.parametrize("channels", [("x", "y"), ("reading",), ("y", "theta", "motion"), ("led",)])
+def test_kept_channels_are_the_full_recording(channels):
+    """Recording fewer trajectories (the gap workflow keeps positions only) keeps exactly those,
+    equal to the full recording's, and in the core and the kernel alike."""
+    sc, sw = _pair("phototaxis")
+    full = sim.simulate(sc, sw, 17, runs=RUNS, trials=TRIALS, record_every=3)
+    for res in (engine.simulate(sc, sw, 17, runs=RUNS, trials=TRIALS, record_every=3, channels=channels, threads=2),
+                sim.simulate(sc, sw, 17, runs=RUNS, trials=TRIALS, record_every=3, channels=channels)):
+        assert sorted(res.traj) == sorted(channels)
+        for k in channels:
+            assert res.traj[k].dtype == full.traj[k].dtype and np.array_equal(res.traj[k], full.traj[k]), k
+        assert np.array_equal(res.t_s, full.t_s)
+        for k in full.summary:
+            assert np.array_equal(res.summary[k], full.summary[k]), k
+
+
+@pytest.mark.parametrize("channels", [(), ("x", "heading")])
+def test_unknown_channels_are_refused(channels):
+    sc, sw = _pair("straight_gaussian")
+    with pytest.raises(ValueError, match="channels"):
+        engine.simulate(sc, sw, 1, runs=[0], record_every=1, channels=channels)
+
+
 def test_every_compiled_loop_is_compared_with_the_core(monkeypatch):
     """Each specialisation of the kernel's loop runs in at least one scenario above."""
     used = {}
