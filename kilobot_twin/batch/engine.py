@@ -100,9 +100,8 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
         if "led" in rec:
             rec["led"][...] = st.led[..., None]  # no behaviour here drives the LED
         # Channels not kept go to the kernel as (slots, 0) arrays, which it does not write.
-        rec_args = (int(record_every),) + tuple(rec[k].reshape(S, -1) if k in rec else np.zeros((S, 0), dtype=d)
-                                                for k, d in (("x", np.float64), ("y", np.float64), ("theta", np.float64),
-                                                             ("reading", np.float64), ("motion", np.int8)))
+        rec_args = (int(record_every),) + tuple(rec[k].reshape(S, -1) if k in rec else np.zeros((S, 0), sim.TRAJ_DTYPES[k])
+                                                for k in ("x", "y", "theta", "reading", "motion"))
 
     # Report progress about 100 times a run, but give each kernel call at least ~1e5 robot-steps
     # (a call costs some tens of microseconds of argument checking).

@@ -215,9 +215,9 @@ class Result:
 
 
 #: The trajectories a run can record, and their dtypes.
-TRAJ_CHANNELS = ("x", "y", "theta", "reading", "led", "motion")
-_TRAJ_DTYPES = {"x": np.float64, "y": np.float64, "theta": np.float64, "reading": np.float64, "led": np.int8,
-                "motion": np.int8}
+TRAJ_DTYPES = {"x": np.float64, "y": np.float64, "theta": np.float64, "reading": np.float64, "led": np.int8,
+               "motion": np.int8}
+TRAJ_CHANNELS = tuple(TRAJ_DTYPES)
 
 
 def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, trials=None, robot_index=None,
@@ -295,7 +295,7 @@ def start_record(st: SimState, n_steps: int, record_every: int, channels=TRAJ_CH
         raise ValueError(f"channels: {unknown or 'none'} (choose one or more of {TRAJ_CHANNELS})")
     R, N = st.shape
     T = n_steps // record_every + 1
-    rec = {k: np.empty((R, N, T), dtype=_TRAJ_DTYPES[k]) for k in TRAJ_CHANNELS if k in channels}
+    rec = {k: np.empty((R, N, T), dtype=TRAJ_DTYPES[k]) for k in TRAJ_CHANNELS if k in channels}
     _record(rec, st, 0)
     return rec
 

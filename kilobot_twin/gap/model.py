@@ -149,14 +149,12 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
         for a in (x, y):
             z = rng.standard_normal(mask.shape)
             z *= cond.tracking_noise_m
-            if f is None:
-                z += a
-            else:
+            if f is not None:
                 a0 = a[..., :1].copy()
                 a -= a0
                 a *= f
                 a += a0
-                z += a
+            z += a
             z[hidden] = np.nan
             tracks.append(z)
         s = summaries.motion(*tracks, cond.dt_s, wander_lags_s=summaries.wander_lags(cond.tracking_noise_m), threads=THREADS)
