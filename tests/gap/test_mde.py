@@ -8,6 +8,8 @@ from kilobot_twin.gap import effects as E
 from kilobot_twin.gap.model import Conditions, simulate
 from kilobot_twin.gap.workflow import HUBER_K, detect, minimum_detectable
 
+from . import unicycle
+
 
 def _logpdf(y, mu, var):
     """The held-out log-density written with scipy's Huber loss: Gaussian within HUBER_K sds,
@@ -142,10 +144,8 @@ def test_the_noise_emulation_has_the_shape_of_tracks():
     lags = summaries.wander_lags(e)
 
     def tracks(sig2):
-        th = rng.uniform(-np.pi, np.pi, (R, 1)) + np.cumsum(np.sqrt(sig2 * dt) * rng.standard_normal((R, T)), -1)
-        x = np.cumsum(v * dt * np.cos(th), -1) + e * rng.standard_normal((R, T))
-        y = np.cumsum(v * dt * np.sin(th), -1) + e * rng.standard_normal((R, T))
-        return summaries.motion(x, y, dt, wander_lags_s=lags)["diffusion"]
+        th = rng.uniform(-np.pi, np.pi, (R, 1)) + unicycle.brownian_headings(rng, R, T, dt, sig2)
+        return summaries.motion(*unicycle.tracks(rng, th, v, dt, e), dt, wander_lags_s=lags)["diffusion"]
 
     d0, d1, d9 = tracks(0.0), tracks(1e-4), tracks(9e-4)
     var0, s_w2, level = d0.var(), d1.var(), d1.mean() - d0.mean()

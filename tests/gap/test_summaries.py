@@ -9,6 +9,8 @@ from kilobot_twin.core.traits import SwarmTraits, draw_population
 from kilobot_twin.gap import summaries, synth
 from kilobot_twin.gap.model import blink_leds
 
+from . import unicycle
+
 
 def test_turn_rate_and_speed_of_noisy_gappy_tracks_match_kinematics():
     b = np.linspace(-0.04, 0.04, 9)
@@ -57,11 +59,9 @@ def test_diffusion_of_a_diffusing_heading_matches_theory():
     rng = np.random.default_rng(11)
     R, T, dt, v, sig2, e = 200, 6001, 0.1, 0.01, 4e-4, 0.002
     expected = sig2 * (1 - 1.5 * 10.0 / ((T - 1) * dt))
-    th = np.cumsum(np.sqrt(sig2 * dt) * rng.standard_normal((R, T)), axis=-1)
+    th = unicycle.brownian_headings(rng, R, T, dt, sig2)
     for speed_noise in (0.0, 0.0005):
-        step = v * dt + speed_noise * np.sqrt(dt) * rng.standard_normal((R, T))
-        x = np.cumsum(step * np.cos(th), -1) + e * rng.standard_normal((R, T))
-        y = np.cumsum(step * np.sin(th), -1) + e * rng.standard_normal((R, T))
+        x, y = unicycle.tracks(rng, th, v, dt, e, speed_noise)
         d = summaries.motion(x, y, dt, wander_lags_s=(1.0, 10.0))["diffusion"]
         se = d.std(ddof=1) / np.sqrt(R)
         assert abs(d.mean() - expected) < 4 * se, (speed_noise, d.mean() / sig2, se / sig2)
