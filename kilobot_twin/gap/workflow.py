@@ -335,22 +335,43 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
 
 
 def _replicate_spread(x):
-    """Each robot's simulated spread from replicates x (M, N): its own variance shrunk halfway to
-    the typical robot's (M replicates estimate a variance only to sqrt(2 / M); robots may differ
-    in noise), and the mean over robots (what a mean over robots varies by, times n).
+    """Each robot's simulated spread from replicates x (M, N), and the mean over robots (what a
+    mean over robots varies by, times n).
+
+    M replicates estimate a variance only to sqrt(2 / M) (more for skewed summaries), so each
+    robot's variance is pulled towards the typical robot's, on the log scale, by as much as the
+    robots' variances differ beyond that noise (empirical Bayes, method of moments): weight
+    w = tau^2 / (tau^2 + s^2), s^2 the sampling variance of a robot's log variance (from the
+    two halves of its replicates: distribution-free) and tau^2 the robots' spread of log
+    variances beyond it. Alike robots (w near 0) share the typical variance; robots that differ
+    in noise by factors of several (a lognormal spread of noise intensities, whose summaries
+    scatter in proportion) keep their own (w near 1), where a fixed halfway pull had left the
+    noisiest robots' spreads too narrow by sqrt(2) and the gap after naming the noise effect
+    far from 0.
 
     The typical spread is the robots' median variance over the median of the chi-square that M
     replicates draw (the common variance when robots are alike), not their mean: one robot 6x
     noisier than the rest (robots that differ in noise) had widened every other robot's
-    prediction through the mean."""
+    prediction through the mean; the centre of the pull is that median too."""
     from scipy.stats import chi2
 
     with np.errstate(all="ignore"):
         var_i = np.nanvar(x, axis=0, ddof=1)
+        half = x.shape[0] // 2
+        split = np.log(np.nanvar(x[:half], axis=0, ddof=1) / np.nanvar(x[half:], axis=0, ddof=1))
     mean = float(np.nanmean(var_i))
     dof = max(float(np.median(np.isfinite(x).sum(0))) - 1.0, 1.0)
     typical = float(np.nanmedian(var_i)) * dof / chi2.median(dof)
-    return 0.5 * np.where(np.isfinite(var_i), var_i, typical) + 0.5 * typical, mean
+    ok = np.isfinite(var_i) & (var_i > 0)
+    if ok.sum() < 3 or not typical > 0:
+        return np.where(ok, 0.5 * var_i + 0.5 * typical, typical), mean
+    dev = np.log(var_i[ok] / typical)
+    s2 = float(np.mean(split[np.isfinite(split)] ** 2)) / 4.0  # var(half a - half b) = 2 x 2 x a whole's
+    tau2 = max(float(np.var(dev, ddof=1)) - s2, 0.0)
+    w = tau2 / (tau2 + s2) if tau2 + s2 > 0 else 0.0
+    out = np.full(var_i.shape, typical)
+    out[ok] = typical * np.exp(w * dev)
+    return out, mean
 
 
 def _without_wild_replicates(x, k: float = 10.0):

@@ -198,3 +198,25 @@ def test_replicate_spread_is_the_common_variance_and_one_noisy_robot_does_not_wi
     assert np.mean(alike) == pytest.approx(4.0, abs=4 * np.std(alike) / np.sqrt(D))
     assert np.mean(noisy) / np.mean(alike) < 1.1
     assert mean_n - mean == pytest.approx((x[:, 0].var(ddof=1) - (x[:, 0] / 6).var(ddof=1)) / N)
+
+
+def test_replicate_spread_keeps_the_own_spread_of_robots_that_differ_in_noise():
+    """Robots whose noise differs by factors of several (sd_i = exp(N(0, 1)), drawn here): the
+    robots' log variances spread by tau^2 = 4 against a sampling variance of about 2 / 29 = 0.07
+    (30 replicates), so the pull towards the typical robot has weight tau^2 / (tau^2 + s^2),
+    about 0.98, and a robot 10x or more above the typical variance keeps its own to within
+    (1 - w) x its log ratio (under 0.1 for ratios up to e^5) plus the log chi-square's bias
+    (-1 / 29): mean log(predicted / true) above -0.2. A fixed halfway pull gives about
+    log(0.5 + 0.5 / r), below -0.55 for every r > 10."""
+    from kilobot_twin.gap.workflow import _replicate_spread
+
+    rng = np.random.default_rng(17)
+    M, N, D = 30, 20, 300
+    logs = []
+    for _ in range(D):
+        sd = np.exp(rng.normal(0.0, 1.0, N))
+        var, _ = _replicate_spread(rng.normal(0.0, 1.0, (M, N)) * sd)
+        loud = sd**2 > 10 * np.median(sd**2)
+        logs.extend(np.log(var[loud] / sd[loud] ** 2))
+    assert len(logs) > 300
+    assert -0.2 < np.mean(logs) < 0.05
