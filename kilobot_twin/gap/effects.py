@@ -48,17 +48,29 @@ class TwinModel:
     #: trait -> (N,) each robot's estimate with the robots' spread kept (``shrink(keep_spread=True)``),
     #: for the traits a named effect fitted; the model's own traits are the pooled predictions
     individual: dict = field(default_factory=dict)
+    #: trait -> the expected correlation of its ``individual`` estimates with the robots' true
+    #: values (see :meth:`with_individual`)
+    expected_r: dict = field(default_factory=dict)
 
     def with_traits(self, speed_trial_sd: float | None = None, frame_lead: str | None = None, **arrays) -> "TwinModel":
         sts = self.speed_trial_sd if speed_trial_sd is None else float(speed_trial_sd)
         return TwinModel(self.kind, self.swarm.with_values(**arrays), list(self.named), sts, dict(self.pooling),
                          dict(self.slope_pooling), dict(self.noise_map), frame_lead or self.frame_lead,
-                         self.forward_speed_m_s, dict(self.individual))
+                         self.forward_speed_m_s, dict(self.individual), dict(self.expected_r))
 
-    def with_individual(self, **arrays) -> "TwinModel":
-        """The same model, with these traits' spread-keeping per-robot estimates (see ``individual``)."""
+    def with_individual(self, weights: dict, **arrays) -> "TwinModel":
+        """The same model, with these traits' spread-keeping per-robot estimates (see ``individual``).
+
+        ``weights``: trait -> the pooling weights w_i of its estimates (:func:`shrink`). The mean
+        w is their reliability, the share of the estimates' spread that is the robots' own:
+        spread-keeping estimates correlate with the robots' true values by about sqrt(mean w),
+        and their slope against the truth is about the same (``expected_r``). A per-robot value
+        from a few noisy trials cannot do better; the report says how well it can."""
         m = self.with_traits()
         m.individual.update({k: np.asarray(v, dtype=float) for k, v in arrays.items()})
+        for k in arrays:
+            w = np.asarray(weights[k], dtype=float)
+            m.expected_r[k] = float(np.sqrt(np.mean(w[np.isfinite(w)]))) if np.isfinite(w).any() else 0.0
         return m
 
     def pooled(self, summary: str, w, w_slope=None) -> "TwinModel":
@@ -443,7 +455,7 @@ class HeadingBias(Effect):
         n = len(model.swarm)
         bias, w = partial_pool(b)
         m = model.with_traits(heading_bias=bias, bias_trial_sd=np.full(n, np.sqrt(spread))).pooled("turn_rate", w)
-        return m.with_individual(heading_bias=partial_pool(b, keep_spread=True)[0])
+        return m.with_individual({"heading_bias": w}, heading_bias=partial_pool(b, keep_spread=True)[0])
 
 
 class BiasDrift(Effect):
@@ -477,7 +489,7 @@ class BiasDrift(Effect):
         m = model.with_traits(heading_bias=level - slope * kbar, bias_drift=slope,
                               bias_trial_sd=np.full(n, np.sqrt(spread))).pooled("turn_rate", w, w_d)
         level_i, slope_i = partial_pool(b, s2=var, keep_spread=True)[0], shrink(d, se2, keep_spread=True)[0]
-        return m.with_individual(heading_bias=level_i - slope_i * kbar, bias_drift=slope_i)
+        return m.with_individual({"heading_bias": w, "bias_drift": w_d}, heading_bias=level_i - slope_i * kbar, bias_drift=slope_i)
 
 
 class SpeedHeterogeneity(Effect):
@@ -497,7 +509,7 @@ class SpeedHeterogeneity(Effect):
         m = model.with_traits(speed_factor=model.swarm.speed_factor * ratio).pooled("speed", w)
         m = _own_fixed_point(m, "speed_factor", "speed", speed, resim, iterations)
         # (speed factors scale the summary, so the spread-keeping estimates scale alike)
-        return m.with_individual(speed_factor=m.swarm.speed_factor * partial_pool(meas["speed"], keep_spread=True)[0] / speed)
+        return m.with_individual({"speed_factor": w}, speed_factor=m.swarm.speed_factor * partial_pool(meas["speed"], keep_spread=True)[0] / speed)
 
 
 def _own_fixed_point(m: TwinModel, trait: str, summary: str, target, resim, iterations: int) -> TwinModel:
@@ -549,7 +561,7 @@ class MotionNoise(Effect):
             return np.where(np.isfinite(d), np.maximum(d - c, 0.0) / max(slope, 1e-30), np.mean(s2))
 
         m = model.with_traits(sigma_omega=np.sqrt(variance(d_i))).pooled("diffusion", w)
-        m = m.with_individual(sigma_omega=np.sqrt(variance(partial_pool(meas["diffusion"], keep_spread=True)[0])))
+        m = m.with_individual({"sigma_omega": w}, sigma_omega=np.sqrt(variance(partial_pool(meas["diffusion"], keep_spread=True)[0])))
         # The trial-to-trial bias spread keeps only what the new noise does not already explain.
         b = _bias(meas["turn_rate"], m)
         spread = max(within_var(b) - _est_var_bias(ref, m, resim), 0.0)
@@ -581,7 +593,7 @@ class SensorGain(Effect):
             o = np.where(ok, m.swarm.sensor_offset + mo - so, m.swarm.sensor_offset)
             m = m.with_traits(sensor_gain=g, sensor_offset=o)
         mg_i, mo_i = partial_pool(meas["gain"], keep_spread=True)[0], partial_pool(meas["offset"], keep_spread=True)[0]
-        m = m.with_individual(sensor_gain=m.swarm.sensor_gain * mg_i / mg, sensor_offset=m.swarm.sensor_offset + mo_i - mo)
+        m = m.with_individual({"sensor_gain": wg, "sensor_offset": wo}, sensor_gain=m.swarm.sensor_gain * mg_i / mg, sensor_offset=m.swarm.sensor_offset + mo_i - mo)
         # The reading noise that is left once robots differ in gain: a robot's bend at the
         # ceiling moves with its gain, and with it how much its sweeps vary.
         return fit_sensor_noise(m, meas, resim) if resim is not None else m
@@ -606,7 +618,7 @@ class ClockDrift(Effect):
         n = len(model.swarm)
         m = model.with_traits(clock_rate=c, clock_trial_sd=np.full(n, np.sqrt(spread))).pooled("toggle_rate", w)
         m = _own_fixed_point(m, "clock_rate", "toggle_rate", rate, resim, iterations)
-        return m.with_individual(clock_rate=m.swarm.clock_rate * partial_pool(meas["toggle_rate"], keep_spread=True)[0] / rate)
+        return m.with_individual({"clock_rate": w}, clock_rate=m.swarm.clock_rate * partial_pool(meas["toggle_rate"], keep_spread=True)[0] / rate)
 
 
 #: What :func:`fit_base` estimates from the data, per kind (population levels only).

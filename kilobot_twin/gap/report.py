@@ -57,6 +57,12 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
             for eff, v in s["minimum_detectable"].items():
                 named = "not even at 16x the detection size" if v["size"] is None else f"{v['size']:.3g}"
                 lines.append(f"- {eff}: named {named}, detected {v['detection_size']:.3g} ({v['unit']})")
+        if s.get("estimates"):
+            lines += ["", "Per-robot estimates (model.yaml) and how closely they can follow the robots' true values "
+                      "from these trials (expected correlation, also about their slope against the truth; "
+                      "more trials raise it):"]
+            for trait, v in s["estimates"].items():
+                lines.append(f"- {trait}: expected r {v['expected_r']:.2f}")
         lines += ["", "Nuisances fitted by the base model: " + ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}" for k, v in s.get("nuisances", {}).items()), ""]
         fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
         res = residuals[j]

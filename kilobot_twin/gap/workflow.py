@@ -761,7 +761,10 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         # Per-robot estimates of the named effects' traits: ``individual`` (in model.yaml: the
         # robots' spread kept) and ``predictive`` (pooled towards the population: each robot's
         # best prediction, what the held-out gap was scored with).
-        "estimates": {k: {"individual": [float(x) for x in v], "predictive": [float(x) for x in final.swarm.values[k]]}
+        # ``expected_r``: how closely the individual estimates can follow the robots' true values
+        # from these trials (sqrt of the pooling weights' mean, see effects.TwinModel.with_individual).
+        "estimates": {k: {"individual": [float(x) for x in v], "predictive": [float(x) for x in final.swarm.values[k]],
+                          "expected_r": final.expected_r[k]}
                       for k, v in final.individual.items()},
         "minimum_detectable": mde,
         "steps": steps,

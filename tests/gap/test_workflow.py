@@ -48,6 +48,9 @@ def test_heading_bias_named_recovered_and_gap_shrinks(tmp_path):
     assert step["name"] == "heading_bias" and step["runner_up"]["name"] is None and "gap_after" in step
     assert "bias_drift skipped: it extends heading_bias" in step["runner_up"]["why_this_one"]
     assert "Infinity" not in (tmp_path / "out" / "report.json").read_text()
+    # The report states how closely the per-robot values can follow the truth; here they do (r >= 0.95 above).
+    assert doc["datasets"][0]["estimates"]["heading_bias"]["expected_r"] >= 0.95
+    assert "heading_bias: expected r" in (tmp_path / "out" / "report.md").read_text()
     assert (tmp_path / "out" / "report.md").is_file() and (tmp_path / "out" / "gap_0.png").is_file()
 
 
