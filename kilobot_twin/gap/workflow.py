@@ -928,8 +928,8 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     tracks far below 0, where the log scale makes them outliers, and the stated power fell at
     large spreads. Random numbers are drawn in this order: the within-robot noise, the robots'
     effects, G (``noise`` only), the bootstrap indices. The effect's predictive variance is each
-    robot's own at its fitted ratio, shrunk halfway to the pooled one, as :func:`_heldout` does
-    with simulations; the base's is the population's, ``s_w2``."""
+    robot's own at its fitted ratio (robots apart in noise keep their own simulated spread in
+    :func:`_heldout`, see :func:`_replicate_spread`); the base's is the population's, ``s_w2``."""
     rng = np.random.default_rng(seed)
     K, N = seen.shape
     eps = rng.normal(0.0, np.sqrt(s_w2), (reps, K, N))
@@ -1005,8 +1005,9 @@ def _heldout_gain(x, drift: bool, base_absorbs: bool, noise: tuple | None = None
                 level, f, s_w2 = noise
                 base = loglik(y, mu, s_w2 * (1 + 1 / n_all))
                 r_hat = np.maximum(1 + mean / level, 0.0)
+                # each robot's own variance at its fitted intensity, as _replicate_spread keeps it
+                # for robots whose simulated spreads differ beyond replicate noise
                 var_i = s_w2 * (1 - f + f * r_hat**2)
-                var_i = 0.5 * var_i + 0.5 * var_i.mean(-1, keepdims=True)
                 gain += loglik(y, mean, var_i * (1 + w / np.maximum(n, 1))) - base
                 continue
             base = loglik(y, mu, spread[:, None] * (1 + 1 / n_all))

@@ -48,8 +48,8 @@ def _log_scale_by_hand(x):
 def _named_by_loop(x, null_mean, threshold, base_absorbs, rng, noise=None, s_w2=1.0):
     """A second implementation of one emulated dataset's fate, robot by robot and fold by fold,
     through the workflow's own naming rule (decide). ``noise = (level, f)``: robots differing
-    in a noise intensity, each predicted with its own variance at its fitted intensity, shrunk
-    halfway to the robots' mean (as the workflow's simulations are), against the population's."""
+    in a noise intensity, each predicted with its own variance at its fitted intensity (as the
+    workflow's simulations keep it for robots apart in noise), against the population's."""
     from kilobot_twin.gap.workflow import _f_between, decide
 
     K, N = x.shape
@@ -71,7 +71,7 @@ def _named_by_loop(x, null_mean, threshold, base_absorbs, rng, noise=None, s_w2=
             if not np.isfinite(x[k, i]):
                 continue
             n_i = np.isfinite(train[:, i]).sum()
-            var_i = within if noise is None else 0.5 * own[i] + 0.5 * sum(own) / N
+            var_i = within if noise is None else own[i]
             cand_var = var_i * (1 + w[i] / max(n_i, 1))
             gain[i] += _logpdf(x[k, i], pooled[i], cand_var) - _logpdf(x[k, i], mu, base_var)
     return decide({"effect": gain}, lambda name: ["signal"], rng, 200, library={})["named"]
