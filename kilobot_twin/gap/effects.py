@@ -238,9 +238,10 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
         m = m.with_traits(frame_lead=noise.frame_lead)
     elif resim is not None:
         m = m.with_traits(frame_lead=_frame_lead(m, meas, resim))
-    rel = meas["toggle_rate"] / np.nanmean(meas["toggle_rate"])
-    est = _est_var_rel(resim(m.with_traits(clock_trial_sd=np.zeros(n))) if resim is not None else ref, m)
-    spread = max(float(np.nanvar(rel, ddof=1)) - est, 0.0)  # identical clocks: all spread is per trial
+    # Identical clocks: all spread of the rates is per trial, less what timing to frames gives.
+    # (Simulated with m's own frame lead, which the reference simulation need not have.)
+    jitter_free = resim(m.with_traits(clock_trial_sd=np.zeros(n))) if resim is not None else ref
+    spread = max(_spread_all(meas["toggle_rate"]) - _timing_var(_spread_all, jitter_free, m), 0.0)
     return m.with_traits(clock_trial_sd=np.full(n, np.sqrt(spread)))
 
 
@@ -256,35 +257,38 @@ def _frame_lead(m: TwinModel, meas: dict, resim) -> str:
     ``clock_drift`` leaves the robots' differences flagged (indep blink 1019: random lead; synth
     1006: aligned)."""
     sims = resim(m.with_traits(clock_trial_sd=np.zeros(len(m.swarm)), frame_lead="random"))["toggle_rate"]
+    timing = _spread_own(sims)  # (M,)
+    return "aligned" if _spread_own(meas["toggle_rate"]) < np.nanpercentile(timing, 2.5) else "random"
+
+
+def _spread_own(rate):
+    """Relative variance of each robot's toggle rates (..., K, N) about its own mean, pooled over
+    robots (what clock jitter adds to once robots' clocks differ): (...)."""
+    rate = np.asarray(rate, dtype=float)
     with np.errstate(all="ignore"):
-        rel = lambda x: x / _nanmean(x, axis=-2)[..., None, :]  # noqa: E731 - each robot's own mean
-        data = within_var(rel(np.asarray(meas["toggle_rate"], dtype=float)))
-        timing = within_var(rel(np.asarray(sims, dtype=float)))  # (M,)
-    return "aligned" if data < np.nanpercentile(timing, 2.5) else "random"
+        return within_var(rate / _nanmean(rate, axis=-2)[..., None, :])
 
 
-def _est_var_rel(ref, model, resim=None):
-    """Relative variance of a trial's rate estimate from measurement alone (no clock jitter)."""
+def _spread_all(rate):
+    """Relative variance of all toggle rates (..., K, N) about their mean (what clock jitter adds
+    to when clocks are identical): (...)."""
+    rate = np.asarray(rate, dtype=float)
+    with np.errstate(all="ignore"):
+        return np.nanvar(rate / _nanmean(rate, axis=(-2, -1))[..., None, None], axis=(-2, -1), ddof=1)
+
+
+def _timing_var(spread, ref, model, resim=None) -> float:
+    """What timing to frames gives a spread of the rates (:func:`_spread_own`, :func:`_spread_all`)
+    by itself: the spread of each jitter-free simulated replicate, averaged over replicates.
+
+    Not the variance over replicates of each (trial, robot): with the robots' clocks started with
+    the frames (``frame_lead`` aligned) the timing error is the same in every replicate of a trial
+    and differs only from trial to trial, so replicates miss it; the data's spread was then taken
+    for clock jitter and counted twice, and a right ``clock_drift`` left the robots' differences
+    flagged (synth blink 3002: clock drift 70x its MDE, nothing named)."""
     if resim is not None and np.any(model.swarm.clock_trial_sd > 0):
         ref = resim(model.with_traits(clock_trial_sd=np.zeros(len(model.swarm))))
-    rate = ref["toggle_rate"]
-    return _pooled_replicate_var(rate / np.nanmean(rate))
-
-
-def _timing_var_within(ref, model, resim=None):
-    """Relative variance of a robot's rate from trial to trial that timing to frames gives by
-    itself (no clock jitter): each robot's trials about its own mean, in jitter-free simulations,
-    averaged over replicates. Not the spread over replicates (:func:`_est_var_rel`): with the
-    robots' clocks started with the frames (``frame_lead`` aligned) the timing error is the same
-    in every replicate of a trial and differs only from trial to trial, so the replicates miss it,
-    the data's within-robot spread was taken for clock jitter and counted twice, and a right
-    ``clock_drift`` left the robots' differences flagged (synth blink 3002, 3017: 70x the MDE,
-    nothing named)."""
-    if resim is not None and np.any(model.swarm.clock_trial_sd > 0):
-        ref = resim(model.with_traits(clock_trial_sd=np.zeros(len(model.swarm))))
-    rate = np.asarray(ref["toggle_rate"], dtype=float)
-    with np.errstate(all="ignore"):
-        return float(np.nanmean(within_var(rate / _nanmean(rate, axis=-2)[..., None, :])))
+    return float(np.nanmean(spread(ref["toggle_rate"])))
 
 
 ADC_ROUNDING_VAR = 1.0 / 12.0  # counts^2
@@ -629,8 +633,7 @@ class ClockDrift(Effect):
         (predictive spread of that order) turns into a large misfit."""
         rate, w = partial_pool(meas["toggle_rate"])
         c = model.swarm.clock_rate * rate / _nanmean(ref["toggle_rate"], axis=(0, 1))
-        rel = meas["toggle_rate"] / _nanmean(meas["toggle_rate"], axis=0)[None, :]
-        spread = max(within_var(rel) - _timing_var_within(ref, model, resim), 0.0)
+        spread = max(_spread_own(meas["toggle_rate"]) - _timing_var(_spread_own, ref, model, resim), 0.0)
         n = len(model.swarm)
         m = model.with_traits(clock_rate=c, clock_trial_sd=np.full(n, np.sqrt(spread))).pooled("toggle_rate", w)
         m = _own_fixed_point(m, "clock_rate", "toggle_rate", rate, resim, iterations)

@@ -128,3 +128,43 @@ def test_probes_move_their_statistic_under_heavy_tracking_noise():
         calls = iter(range(100))
         fitted = E.fit_noise_levels(nominal, meas, lambda m: simulate(cond, m, 20, seed=7000 + 50 * seed + next(calls)))
         assert fitted.noise_map["diffusion_per_var"] > 0, (seed, fitted.noise_map)
+
+
+def _blink(lead: str, jitter: float, timing: float = 1e-3, n: int = 40, trials: int = 8, seed: int = 0):
+    """Toggle rates of n robots with differing clocks, trial-to-trial clock jitter ``jitter`` and
+    a timing-to-frames error of sd ``timing``. ``aligned``: clocks start with the frames, so the
+    timing error of a (trial, robot) is the same in the data and in every simulated replicate;
+    ``random``: a fresh one each time. Returns (meas, resim) for :class:`effects.ClockDrift`."""
+    rng = np.random.default_rng(seed)
+    clocks = 1.0 + 0.02 * rng.standard_normal(n)
+    fixed = timing * rng.standard_normal((trials, n))
+
+    def rates(clock, sd, shape):
+        e = fixed if lead == "aligned" else timing * rng.standard_normal(shape)
+        return clock * (1.0 + sd * rng.standard_normal(shape)) * (1.0 + e)
+
+    meas = {"toggle_rate": rates(clocks, jitter, (trials, n))}
+
+    def resim(m, M=40):
+        return {"toggle_rate": rates(m.swarm.clock_rate, m.swarm.clock_trial_sd, (M, trials, n))}
+
+    return meas, resim
+
+
+def test_clock_jitter_is_what_is_left_beyond_the_timing_error_however_the_clocks_start():
+    """The within-robot spread of the rates is jitter^2 + timing^2; clock_drift's jitter is what
+    is left once timing alone is taken out. With clocks aligned to the frames the replicates of a
+    trial share its timing error, so their spread over replicates is 0 and must not stand for it
+    (it did: the jitter came out sqrt(jitter^2 + timing^2), a right clock_drift left the robots'
+    differences flagged). Tolerance: 4 sd of a pooled variance on n (K - 1) degrees of freedom."""
+    n, K, timing, jitter = 40, 8, 1e-3, 1e-3
+    dof = n * (K - 1)
+    for lead in ("aligned", "random"):
+        meas, resim = _blink(lead, jitter, timing, n, K)
+        start = E.nominal_model("blink", np.arange(n)).with_traits(clock_trial_sd=np.full(n, 0.01))
+        m = E.LIBRARY["clock_drift"].fit(start, meas, resim(start), resim)
+        got = m.swarm.clock_trial_sd[0] ** 2
+        # sampling sd of the data's pooled variance (the simulations' mean over 40 replicates adds
+        # little); a second variance, timing's alone, is subtracted in the random case
+        tol = 4 * (jitter**2 + timing**2) * np.sqrt(2 / dof) * (1.0 if lead == "aligned" else 1.2)
+        assert abs(got - jitter**2) < tol, (lead, got / jitter**2, tol / jitter**2)
