@@ -406,6 +406,15 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
             # The speed noises again from their own rows (the diffusion's excess is not theirs).
             rest = nnls(A3[1:, 1:] * w[1:, None], (t3[1:] - A3[1:, 0] * b) * w[1:])[0]
             var = np.array([b, *rest])
+    # The trial speeds' within-robot variance (row 1) is what every speed test and prediction
+    # rests on (the F ratio's within-robot mean square, a held-out trial's spread); the speed
+    # diffusion (row 2) only splits it between the two speed noises. When the split asks for
+    # more speed noise than the trial speeds show (the trial jitter at its floor of 0), row 1
+    # wins: the speed diffusion scatters by about its own size over a dozen robots, and a sigma_v
+    # read from it 2 se high predicted trial speeds 2.9x as variable as measured, which kept a
+    # right speed_heterogeneity from resolving its signal (synth pair 3004).
+    if A[1, 1] > 0 and var[2] == 0.0:
+        var[1] = min(var[1], max((target[1] - A[1, 0] * var[0]) / A[1, 1], 0.0))
     m = model.with_traits(sigma_omega=np.full(n, np.sqrt(var[0])), sigma_v=np.full(n, np.sqrt(var[1])),
                           speed_trial_sd=float(np.sqrt(var[2])))
     m.noise_map = {"diffusion_per_var": float(A[0, 0]),

@@ -88,6 +88,27 @@ def test_heading_noise_is_bounded_by_the_turn_rates_under_heavy_tracking_noise()
         assert data >= np.percentile(within, 0.5), (seed, fitted.swarm.sigma_omega[0], data, np.percentile(within, 0.5))
 
 
+def test_fitted_speed_noise_does_not_make_trial_speeds_vary_more_than_the_data():
+    """A world with no speed noise at all (item 1: zero where physical), 12 robots x 4 trials.
+    The speed diffusion, from which sigma_v is read, scatters by about its own size; with the
+    trial jitter at its floor of 0 the fit took whatever it read, and simulations of the fitted
+    model gave trial speeds 1.5-2.7x as variable within robots as the data's in 6 of 12 such
+    datasets, enough to keep a right speed effect from resolving its signal. The data's
+    within-robot variance of trial speeds must not be below the 0.5 % point of simulations of
+    the fitted noise (the expected value from simulating the fit), on each of 8 datasets."""
+    cond = _conditions(n=12, trials=4, duration=60.0, dt=0.1)
+    cond = Conditions(**{**cond.__dict__, "tracking_noise_m": 0.001})
+    nominal = E.nominal_model("motion", cond.robot_ids)
+    truth = nominal.with_traits(sigma_v=np.zeros(12))
+    for seed in range(8):
+        meas = {k: v[0] for k, v in simulate(cond, truth, 1, seed=900 + seed).items()}
+        calls = iter(range(100))
+        fitted = E.fit_noise_levels(nominal, meas, lambda m: simulate(cond, m, 20, seed=9000 + 10 * seed + next(calls)))
+        within = E.within_var(simulate(cond, fitted, 40, seed=9500 + seed)["speed"])  # (40,)
+        data = E.within_var(meas["speed"])
+        assert data >= np.percentile(within, 0.5), (seed, fitted.swarm.sigma_v[0], data / np.mean(within))
+
+
 def test_speed_factors_are_not_compressed_by_tracking_noise():
     """6.6 mm tracking noise lengthens every 2 s chord (2.3 cm) by about the same amount, so the
     speed summary is not proportional to the speed. Speed factors with sd 0.1 over 24 robots x 6
