@@ -515,7 +515,42 @@ def flagged_by_family(p_values, alpha: float) -> np.ndarray:
 
 def decide(scores: dict, resolves, rng: np.random.Generator, boot: int, library: dict | None = None,
            gain_level: float = GAIN_LEVEL) -> dict:
-    """The naming rule.
+    """The naming rule, applied to each family of rival explanations in turn.
+
+    Candidates that predict disjoint summaries explain different data (:func:`_rivals`), so they
+    are not judged against each other: the rule of :func:`_decide_family` is applied to the family
+    of the best-scoring candidate (it and every candidate that predicts a summary in common with
+    it), and when that family's best is not named, to the best-scoring family left, and so on.
+    Where per-robot speeds and per-robot turn rates both differ, a speed effect that scores higher
+    but cannot resolve its signal while the turn rates are still taken for trial-to-trial spread
+    (the base's chords shorten by a different amount each trial) no longer hides the turn-rate
+    effect that can. Within a family nothing is loosened: the runner-up is not tried in place of
+    a best that fails. Returns the first named family's decision or, when none is named, the
+    first family's; ``passed`` lists the families' bests tried before it and why each was not
+    named.
+    """
+    library = E.LIBRARY if library is None else library
+    left, passed, first = dict(scores), [], None
+    while left:
+        d = _decide_family(left, resolves, rng, boot, library, gain_level)
+        first = first or d
+        if d["named"]:
+            break
+        passed.append({"name": d["best"], "why_not": d["why_not"]})
+        family = {k for k in left if k == d["best"] or _rivals(library, d["best"], k) or _rivals(library, k, d["best"])
+                  or (k in library and d["best"] in library[k].extends)}
+        left = {k: v for k, v in left.items() if k not in family}
+    d = d if d["named"] else first
+    d["passed"] = passed if d["named"] else []
+    if d["passed"]:
+        d["runner_up_reason"] += "; " + "; ".join(
+            f"{x['name']} scored higher and predicts other summaries, but was not named ({x['why_not']})" for x in d["passed"])
+    return d
+
+
+def _decide_family(scores: dict, resolves, rng: np.random.Generator, boot: int, library: dict,
+                   gain_level: float = GAIN_LEVEL) -> dict:
+    """The naming rule within a family of rival explanations.
 
     ``scores[name]`` is each candidate's held-out log-likelihood gain over the current model,
     per robot (N,). The best (largest sum) is named only if
@@ -550,7 +585,6 @@ def decide(scores: dict, resolves, rng: np.random.Generator, boot: int, library:
     and ``simplified`` (the extensions set aside for the simpler model they contain, with the
     95 % interval of their gain over it).
     """
-    library = E.LIBRARY if library is None else library
     by_sum = sorted(scores, key=lambda k: -np.nansum(scores[k]))
     n = len(np.asarray(scores[by_sum[0]]))
 

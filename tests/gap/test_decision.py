@@ -140,6 +140,39 @@ def test_a_clear_winner_that_resolves_nothing_is_not_named():
     assert d["why_not"] == "adding it removes none of the flagged signals"
 
 
+def test_a_family_that_predicts_other_summaries_is_tried_when_the_best_family_names_nothing():
+    """Per-robot speeds and turn rates both differ. The speed effect scores highest and clearly,
+    but resolves nothing (the base still takes the turn rates for trial-to-trial spread); the
+    turn-rate effect explains other data, so it is judged on its own and named. Within the speed
+    effect's family nothing is loosened: a user's effect that predicts speeds too is not tried
+    in its place, and neither is an extension of a best that resolves nothing."""
+    from kilobot_twin.gap import effects as E
+
+    hb = np.full(N, 4.0) + np.linspace(-0.5, 0.5, N)
+    speed = 3 * hb
+    asked = []
+
+    def resolves(name):
+        asked.append(name)
+        return ["turn_rate:between_robots"] if name == "heading_bias" else []
+
+    d = decide({"speed_heterogeneity": speed, "heading_bias": hb}, resolves, _rng(), 500)
+    assert d["named"] and d["best"] == "heading_bias" and asked == ["speed_heterogeneity", "heading_bias"]
+    assert d["passed"] == [{"name": "speed_heterogeneity", "why_not": "adding it removes none of the flagged signals"}]
+    assert "speed_heterogeneity scored higher and predicts other summaries" in d["runner_up_reason"]
+
+    class Pace(E.SpeedHeterogeneity):
+        name = "pace"
+
+    asked.clear()
+    library = {**E.LIBRARY, "pace": Pace()}
+    d = decide({"speed_heterogeneity": speed, "pace": speed - 2.0}, resolves, _rng(), 500, library)
+    assert not d["named"] and d["best"] == "speed_heterogeneity" and asked == ["speed_heterogeneity"] and d["passed"] == []
+    asked.clear()
+    d = decide({"heading_bias": hb + 20.0, "bias_drift": hb}, lambda n: asked.append(n) or [], _rng(), 500)
+    assert not d["named"] and asked == ["heading_bias"]
+
+
 def test_family_wise_threshold():
     # Three tests at alpha 0.01: each is held to 0.01 / 3.
     assert list(flagged_by_family([0.004, 0.5, 0.9], 0.01)) == [False, False, False]
