@@ -537,9 +537,7 @@ def decide(scores: dict, resolves, rng: np.random.Generator, boot: int, library:
         if d["named"]:
             break
         passed.append({"name": d["best"], "why_not": d["why_not"]})
-        family = {k for k in left if k == d["best"] or _rivals(library, d["best"], k) or _rivals(library, k, d["best"])
-                  or (k in library and d["best"] in library[k].extends)}
-        left = {k: v for k, v in left.items() if k not in family}
+        left = {k: v for k, v in left.items() if k != d["best"] and not _same_data(library, d["best"], k)}
     d = d if d["named"] else first
     d["passed"] = passed if d["named"] else []
     if d["passed"]:
@@ -643,9 +641,15 @@ def _rivals(library: dict, best: str, other: str) -> bool:
     are always rivals."""
     if best not in library or other not in library:
         return True
-    if best in library[other].extends:
-        return False
-    return bool(set(library[best].predicts) & set(library[other].predicts))
+    return best not in library[other].extends and _same_data(library, best, other)
+
+
+def _same_data(library: dict, a: str, b: str) -> bool:
+    """Whether ``a`` and ``b`` are of one family: they predict a summary in common (candidates
+    outside the library: always). Rivals, extensions and the models extended are of the family."""
+    if a not in library or b not in library:
+        return True
+    return bool(set(library[a].predicts) & set(library[b].predicts))
 
 
 def _boot(rng, values_fn, n, B):
