@@ -16,7 +16,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..core import behaviors as B
-from ..core import rng, sim
+from ..core import kinematics, rng, sim
 from ..core.arena import Coverage
 from ..core.light import ConeField, GaussianField, UniformSweepField
 from ..core.scenario import Scenario
@@ -77,9 +77,12 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
     last_d = flat(beh.get("last_d", 0.0))
     held = flat(beh.get("a", 0.0))
     bias, clock = flat(st.bias), flat(st.clock)
-    speed, wheel_noise, sigma_v, sigma_omega, gain, offset, noise = (
-        flat(tr[k]) for k in ("speed_factor", "wheel_noise", "sigma_v", "sigma_omega", "sensor_gain",
-                              "sensor_offset", "sensor_noise"))
+    speed, wheel_noise, sigma_v, gain, offset, noise = (
+        flat(tr[k]) for k in ("speed_factor", "wheel_noise", "sigma_v", "sensor_gain", "sensor_offset", "sensor_noise"))
+    # The turn-rate noise's coefficients from the core's own function (the same bits), and its state.
+    turn_a, turn_c, turn_g = (flat(a) for a in kinematics.turn_noise_coefficients(tr["sigma_omega"], tr["heading_noise_tau"],
+                                                                                  scenario.dt_s))
+    turn = flat(st.turn_noise)
     kmot, kwheel, ksens, kbeh = (flat(st.keys[p], np.uint64) for p in (rng.MOTION, rng.WHEEL, rng.SENSOR, rng.BEHAVIOR))
     path, cost, rsum = np.zeros(S), np.zeros(S), np.zeros(S)
 
@@ -112,7 +115,7 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
             k1 = min(n, k0 + chunk)
             K.advance(s0, s1, k0, k1, n, window, fp, ip, table, sweep,
                       x, y, th, ticks, motion, reading, mode, deadline, last, last_d, held,
-                      bias, clock, speed, wheel_noise, sigma_v, sigma_omega, gain, offset, noise,
+                      bias, clock, speed, wheel_noise, sigma_v, turn_a, turn_c, turn_g, turn, gain, offset, noise,
                       kmot, kwheel, ksens, kbeh, path, cost, rsum, visited, *rec_args)
             if progress is not None:
                 progress(k1 - k0)

@@ -113,7 +113,7 @@ def _loop(spec):
 
     def _advance(s0, s1, k0, k1, n, window, fp, ip, table, sweep,
                  x, y, th, ticks, motion, reading, mode, deadline, last, last_d, held,
-                 bias, clock, speed, wheel_noise, sigma_v, sigma_omega, gain, offset, noise,
+                 bias, clock, speed, wheel_noise, sigma_v, turn_a, turn_c, turn_g, turn, gain, offset, noise,
                  kmot, kwheel, ksens, kbeh, path, cost, rsum, visited,
                  record_every, rec_x, rec_y, rec_th, rec_r, rec_mot):  # pragma: no cover - compiled
         """Advance slots ``[s0, s1)`` through steps ``[k0, k1)`` of ``n``, in place.
@@ -162,7 +162,7 @@ def _loop(spec):
             f_right0 = speed_s * (1.0 - half_b)
             amp = wheel_noise[s] * speed_s
             sv_root = sigma_v[s] * root_dt
-            sw_root = sigma_omega[s] * root_dt
+            ta, tc, tg, zeta = turn_a[s], turn_c[s], turn_g[s], turn[s]
             kmot_s, kwheel_s = kmot[s], kwheel[s]
             phase = (k0 + 1) % record_every if record_every > 0 else 1  # (k + 1) % record_every, kept by counting
             for k in range(k0, k1):
@@ -279,9 +279,10 @@ def _loop(spec):
                 dth = (vr - vl) * dt_over_l
                 if motion_noisy:
                     z_v, z_w = _normal_pair(kmot_s, k)
+                    zeta = ta * zeta + tc * z_w  # kinematics.turn_noise_coefficients
                     if vl != 0 or vr != 0:
                         ds = ds + sv_root * z_v
-                        dth = dth + sw_root * z_w
+                        dth = dth + tg * zeta
                     else:
                         ds = ds + 0.0
                         dth = dth + 0.0
@@ -319,7 +320,7 @@ def _loop(spec):
                     phase += 1
                     if phase == record_every:
                         phase = 0
-            x[s], y[s], th[s], ticks[s] = xs, ys, ths, tk
+            x[s], y[s], th[s], ticks[s], turn[s] = xs, ys, ths, tk, zeta
             motion[s], reading[s] = mo, rd
             mode[s], deadline[s], last[s], last_d[s], held[s] = md, dl, ls, ld, hd
             path[s], cost[s], rsum[s] = ps, cs, rss

@@ -41,6 +41,7 @@ class SimState:
     trials: np.ndarray  # (R,) trial index of each run
     adjacency: np.ndarray | None = None  # (R, N, N) Kuramoto neighbours
     traits: dict = field(default_factory=dict)  # trait arrays broadcast to (1, N)
+    turn_noise: np.ndarray | None = None  # state of the coloured turn-rate noise (unit variance)
 
     @property
     def shape(self):
@@ -116,6 +117,8 @@ def init_state(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tr
         step=0, x=x, y=y, theta=theta, ticks=np.zeros((R, N)), bias=bias, clock=clock,
         motion=np.zeros((R, N), dtype=np.int8), led=np.full((R, N), LED_OFF, dtype=np.int8),
         reading=np.zeros((R, N)), behavior={}, keys=keys, runs=runs, robot_ids=ids, trials=trials, traits=tr,
+        # The turn-rate noise starts in its stationary state (N(0, 1)); white noise ignores it.
+        turn_noise=rng.normal_pair(keys[rng.TRIAL], 2)[0],
     )
     reading0 = _sense(scenario, st, 0.0, 0) if scenario.behavior.needs_light else np.zeros((R, N))
     st.reading = reading0
@@ -187,8 +190,9 @@ def step(st: SimState, scenario: Scenario, table: np.ndarray | None = None) -> S
     if scenario.floor_tilt:
         slope = 1.0 + scenario.floor_tilt * np.cos(st.theta - scenario.floor_tilt_direction_rad)
         vl, vr = vl * slope, vr * slope
-    x, y, th = kinematics.integrate(st.x, st.y, st.theta, vl, vr, tr["sigma_v"], tr["sigma_omega"],
-                                    st.keys[rng.MOTION], k, dt, scenario.motors.wheel_separation_m)
+    x, y, th, st.turn_noise = kinematics.integrate(st.x, st.y, st.theta, vl, vr, tr["sigma_v"], tr["sigma_omega"],
+                                                   st.keys[rng.MOTION], k, dt, scenario.motors.wheel_separation_m,
+                                                   tr["heading_noise_tau"], st.turn_noise)
     st.x, st.y = scenario.arena.confine(x, y)
     st.theta = th
     st.step = k + 1

@@ -59,6 +59,12 @@ class RobotTraits:
     clock_trial_sd : float
         Relative trial-to-trial spread of the clock rate (battery, temperature): each trial
         runs at ``clock_rate * (1 + clock_trial_sd * z)``, z ~ N(0, 1) fixed for the trial.
+    heading_noise_tau : float
+        Correlation time of the turn-rate noise, s (0: white, as in paper Eq. 5). Real robots'
+        heading noise is coloured (wheel slip and floor texture last a while): the turn-rate
+        noise is then an Ornstein-Uhlenbeck-like process with this correlation time, scaled so
+        the heading still diffuses with variance ``sigma_omega**2 * t`` at times long against
+        it, while over shorter times it wanders less (see :func:`kinematics.turn_noise_coefficients`).
     """
 
     heading_bias: float = 0.0
@@ -73,6 +79,7 @@ class RobotTraits:
     sensor_noise: float = 0.0
     clock_rate: float = 1.0
     clock_trial_sd: float = 0.0
+    heading_noise_tau: float = 0.0  # last: a trait's position keys its population stream
 
     def __post_init__(self):
         for f in fields(self):
@@ -99,6 +106,7 @@ _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
     "sensor_noise": (0.0, 1023.0, True, True, "use a non-negative standard deviation in ADC counts"),
     "clock_rate": (0.0, 10.0, False, True, "use a positive relative rate, 1 for a nominal clock"),
     "clock_trial_sd": (0.0, 0.2, True, True, "use a relative standard deviation in [0, 0.2]"),
+    "heading_noise_tau": (0.0, 60.0, True, True, "use a correlation time in seconds within [0, 60] (0: white noise)"),
 }
 
 
@@ -140,7 +148,9 @@ class SwarmTraits:
     def __post_init__(self):
         ids = np.asarray(self.ids, dtype=np.int64)
         object.__setattr__(self, "ids", ids)
-        vals = {k: np.asarray(self.values[k], dtype=np.float64).reshape(-1) for k in TRAIT_NAMES}
+        # A trait not given takes its default (files written before the trait existed).
+        vals = {k: np.asarray(self.values[k] if k in self.values else np.full(ids.shape, TRAIT_DEFAULTS[k]),
+                              dtype=np.float64).reshape(-1) for k in TRAIT_NAMES}
         for k, v in vals.items():
             if v.shape != ids.shape:
                 raise ValueError(f"trait {k} has shape {v.shape}, expected {ids.shape}")

@@ -25,7 +25,8 @@ POP = {"heading_bias": {"dist": "uniform", "low": -0.04, "high": 0.04}, "wheel_n
        "sigma_omega": 0.05, "sigma_v": 0.001, "sensor_noise": 5.0,
        "sensor_gain": {"dist": "normal", "mean": 1, "sd": 0.05}, "sensor_offset": {"dist": "normal", "mean": 0, "sd": 10},
        "clock_rate": {"dist": "normal", "mean": 1, "sd": 0.02}, "clock_trial_sd": 0.01, "bias_trial_sd": 0.005,
-       "bias_drift": 0.001, "speed_factor": {"dist": "normal", "mean": 1, "sd": 0.03}}
+       "bias_drift": 0.001, "speed_factor": {"dist": "normal", "mean": 1, "sd": 0.03},
+       "heading_noise_tau": {"dist": "uniform", "low": 0.0, "high": 2.0}}
 BIAS = {"heading_bias": {"dist": "uniform", "low": -0.04, "high": 0.04}}
 
 SCENARIOS = {
@@ -33,6 +34,9 @@ SCENARIOS = {
     "straight_wheel": ({"preset": "argos-code", "behavior": "straight", "duration_s": 40}, {**BIAS, "wheel_noise": 0.5}),
     "straight_everything": ({"behavior": "straight", "duration_s": 30, "dt_s": 0.05}, POP),
     "straight_some_noiseless": ({"behavior": "straight", "duration_s": 20}, {"sigma_omega": {"dist": "uniform", "low": 0, "high": 0.1}}),
+    # White and coloured turn-rate noise side by side (tau 0 for about half the robots).
+    "straight_coloured": ({"behavior": "straight", "duration_s": 20},
+                          {**BIAS, "sigma_omega": 0.05, "heading_noise_tau": {"dist": "list", "values": [0.0, 0.3, 0.0, 2.0, 0.0, 1.0, 5.0]}}),
     "random_walk_walls": ({"behavior": "random_walk", "duration_s": 60, "arena": {"walls": True, "width_m": 1.0, "height_m": 1.0},
                            "start": {"kind": "uniform", "half_width_m": 0.4, "heading_rad": None}}, POP),
     "random_walk_durations": ({"behavior": {"kind": "random_walk", "p_forward": 0.7, "forward_min_s": 0.5, "forward_max_s": 3.0,
