@@ -89,7 +89,8 @@ def _write(job: dict, ds: Path, effect_scale: float) -> dict:
     if job["generator"] == "indep":
         return _indep().generate(kind, hidden, ds, seed=seed, nuisance_scale=job["nuisance_scale"],
                                  effect_scale=effect_scale, fixed_shape=job["fixed_shape"],
-                                 program="random" if job.get("random_program") else None)
+                                 program="random" if job.get("random_program") else None,
+                                 nuisance=job.get("nuisance_override"))
     from kilobot_twin.gap.synth import synth
 
     if effect_scale != 1.0:
@@ -410,6 +411,8 @@ def main(argv=None):
     ap.add_argument("--random-program", action="store_true",
                     help="indep: draw each dataset's commanded speed and LED program (the twin's own otherwise)")
     ap.add_argument("--random-nuisance", action="store_true", help="synth: randomise the twin's nuisance levels")
+    ap.add_argument("--heading-noise-tau", type=float, default=None,
+                    help="indep: force the turn-rate noise's correlation time (s; drawn per dataset otherwise)")
     ap.add_argument("--at-mde", action="store_true", help="single effects set to the MDE stated without them (indep)")
     ap.add_argument("--summarise", action="store_true", help="only print the figures of OUT/results.json")
     a = ap.parse_args(argv)
@@ -420,6 +423,9 @@ def main(argv=None):
         return 0
     if a.random_program and a.generator != "indep":
         print("error: --random-program: needs --generator indep (the twin's synth runs the twin's own program)", file=sys.stderr)
+        return 2
+    if a.heading_noise_tau is not None and (a.generator != "indep" or a.heading_noise_tau < 0):
+        print("error: --heading-noise-tau: needs --generator indep and a correlation time >= 0 s", file=sys.stderr)
         return 2
     if a.at_mde and a.generator != "indep":
         print("error: --at-mde: needs --generator indep (its effect sizes scale)", file=sys.stderr)
@@ -449,9 +455,11 @@ def main(argv=None):
     tag = "mde" if a.at_mde else (f"x{a.nuisance_scale}" if a.nuisance_scale is not None else
                                   ("rand" if a.generator == "indep" or a.random_nuisance else "nominal"))
     tag += "_prog" if a.random_program else ""
+    tag += f"_tau{a.heading_noise_tau:g}" if a.heading_noise_tau is not None else ""
     jobs = [{"kind": k, "hidden": h, "seed": a.first_seed + s, "out": str(out), "generator": a.generator,
              "nuisance_scale": a.nuisance_scale, "effect_scale": a.effect_scale, "fixed_shape": a.fixed_shape,
              "random_nuisance": a.random_nuisance, "at_mde": a.at_mde, "random_program": a.random_program,
+             "nuisance_override": None if a.heading_noise_tau is None else {"heading_noise_tau_s": a.heading_noise_tau},
              "name": f"{a.generator}_{tag}_{k}_{h.replace(',', '+') or 'none'}_{a.first_seed + s}"}
             for s in range(a.seeds) for k, h in cases]  # seed-major: a run cut short has every case
     out.mkdir(parents=True, exist_ok=True)

@@ -312,10 +312,11 @@ def draw_program(rng: np.random.Generator | None) -> dict:
 
 
 def generate(kind: str, hidden, out, seed: int = 0, nuisance_scale: float | None = None, effect_scale: float = 1.0,
-             fixed_shape: bool = False, program: dict | str | None = None) -> dict:
+             fixed_shape: bool = False, program: dict | str | None = None, nuisance: dict | None = None) -> dict:
     """Write one dataset to ``out`` (meta.yaml, observations.csv, truth.json); return the truth.
     ``program``: the commanded speed and LED program (:func:`draw_program`'s keys), ``"random"``
-    to draw them per dataset, or None for the Kilobot defaults."""
+    to draw them per dataset, or None for the Kilobot defaults. ``nuisance``: levels that replace
+    the drawn ones (keys of :data:`NOMINAL`), the rest drawn as before."""
     hidden = [h for h in (hidden.split(",") if isinstance(hidden, str) else hidden) if h and h != "none"]
     for h in hidden:
         if h not in EFFECTS[kind]:
@@ -325,6 +326,10 @@ def generate(kind: str, hidden, out, seed: int = 0, nuisance_scale: float | None
     program = draw_program(s_prog if program == "random" else None) | (program if isinstance(program, dict) else {})
     shape = draw_shape(s_shape, kind, fixed_shape)
     nz = draw_nuisance(s_nuis, nuisance_scale)
+    for k, v in (nuisance or {}).items():
+        if k not in NOMINAL:
+            raise ValueError(f"nuisance: {k} is not a nuisance level (use {', '.join(NOMINAL)})")
+        nz[k] = float(v)
     fn = {"motion": motion, "light_sweep": light_sweep, "blink": blink}[kind]
     rows, columns, meta, per_robot, extra = fn(s_world, shape, nz, hidden, effect_scale, program)
     meta.update({"robots": list(range(shape["robots"])), "trials": shape["trials"],
@@ -348,10 +353,12 @@ def main(argv=None):
     ap.add_argument("--effect-scale", type=float, default=1.0)
     ap.add_argument("--fixed-shape", action="store_true", help="12 robots x 4 trials at 10 Hz (blink 16 at 30 Hz)")
     ap.add_argument("--random-program", action="store_true", help="draw the commanded speed and the LED program")
+    ap.add_argument("--heading-noise-tau", type=float, default=None, help="s: force the turn-rate noise's correlation time")
     a = ap.parse_args(argv)
     try:
         truth = generate(a.kind, a.hidden, a.out, a.seed, a.nuisance_scale, a.effect_scale, a.fixed_shape,
-                         "random" if a.random_program else None)
+                         "random" if a.random_program else None,
+                         None if a.heading_noise_tau is None else {"heading_noise_tau_s": a.heading_noise_tau})
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
