@@ -103,8 +103,12 @@ def _write(job: dict, ds: Path, effect_scale: float) -> dict:
         rng = np.random.default_rng(np.random.SeedSequence([seed, 0x5E7]))
         f = {k: float(np.exp(rng.uniform(np.log(0.25), np.log(4.0)))) * (k == "sigma_omega" or rng.random() >= 0.15)
              for k in ("sigma_omega", "sigma_v", "sensor_noise", "clock_trial_sd", "tracking")}
+        # The turn-rate noise's correlation time as the independent world draws it: 0.5 s x
+        # 0.25-4, white with probability 0.15 (drawn after the levels, which stay as they were).
+        tau = 0.5 * float(np.exp(rng.uniform(np.log(0.25), np.log(4.0))))
+        tau = 0.0 if rng.random() < 0.15 else tau
         obs = Observation(tracking_noise_m=0.002 * f.pop("tracking"))
-        return synth(kind, hidden, ds, seed=seed, obs=obs, nuisance=f)
+        return synth(kind, hidden, ds, seed=seed, obs=obs, nuisance=f, heading_noise_tau_s=tau)
     return synth(kind, hidden, ds, seed=seed)
 
 

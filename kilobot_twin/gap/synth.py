@@ -61,12 +61,13 @@ def parse_hidden(text: str, kind: str) -> list[str]:
 
 def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | None = None, trials: int | None = None,
           seed: int = 0, duration_s: float | None = None, obs: Observation = Observation(),
-          nuisance: dict | None = None) -> dict:
+          nuisance: dict | None = None, heading_noise_tau_s: float = 0.0) -> dict:
     """Write a dataset to ``out`` and return its truth (also written to ``out/truth.json``).
 
     ``nuisance`` multiplies the nominal noise levels of the world (keys ``sigma_omega``,
     ``sigma_v``, ``sensor_noise``, ``clock_trial_sd``; tracking noise goes through ``obs``):
-    the workflow fits them, so evaluations randomise them.
+    the workflow fits them, so evaluations randomise them. ``heading_noise_tau_s`` gives every
+    robot's turn-rate noise that correlation time (the trait ``heading_noise_tau``; 0: white).
     """
     if kind not in DEFAULTS:
         raise ConfigError("--kind", f"unknown kind {kind!r}", f"use one of {', '.join(DEFAULTS)}")
@@ -80,6 +81,8 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     traits, truth_extra = _hidden_traits(kind, effects, n, rng)
     for k, f in (nuisance or {}).items():
         traits[k] = traits[k] * f
+    if heading_noise_tau_s:
+        traits["heading_noise_tau"] = np.full(n, float(heading_noise_tau_s))
     swarm = SwarmTraits(ids, traits)
     if kind == "motion":
         tracks, meta = _motion(swarm, K, T, d["dt_s"], seed, truth_extra.get("floor_tilt"), obs, rng)

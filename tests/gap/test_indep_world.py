@@ -93,3 +93,20 @@ def test_bad_effect_name_is_one_line_and_exit_2(tmp_path, capsys):
     assert iw.main(["--kind", "blink", "--hidden", "heading_bias", "--out", str(tmp_path / "x")]) == 2
     assert "heading_bias is not an effect of blink" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_a_forced_correlation_time_replaces_only_that_level(tmp_path):
+    """``nuisance`` (``--heading-noise-tau``) sets the turn-rate noise's correlation time and leaves
+    every other drawn level, the shape and the program as the seed draws them; an unknown level
+    is refused before anything is written."""
+    a = iw.generate("motion", "none", tmp_path / "a", seed=4)
+    b = iw.generate("motion", "none", tmp_path / "b", seed=4, nuisance={"heading_noise_tau_s": 5.0})
+    assert b["nuisance"]["heading_noise_tau_s"] == 5.0 != a["nuisance"]["heading_noise_tau_s"]
+    assert {k: v for k, v in a["nuisance"].items() if k != "heading_noise_tau_s"} == \
+        {k: v for k, v in b["nuisance"].items() if k != "heading_noise_tau_s"}
+    assert a["shape"] == b["shape"]
+    assert iw.main(["--out", str(tmp_path / "c"), "--heading-noise-tau", "2"]) == 0
+    assert json.loads((tmp_path / "c" / "truth.json").read_text())["nuisance"]["heading_noise_tau_s"] == 2.0
+    with pytest.raises(ValueError, match="heading_tau is not a nuisance level"):
+        iw.generate("motion", "none", tmp_path / "d", seed=4, nuisance={"heading_tau": 1.0})
+    assert not (tmp_path / "d").exists()

@@ -338,3 +338,13 @@ def test_one_slipped_trial_does_not_outweigh_the_swarm(tmp_path):
     rep = run_gap([str(ds)], tmp_path / "out", gs=GapSettings(seed=1014), log=lambda *a: None)
     assert rep["named_effects"] == ["speed_heterogeneity"] and not rep["unexplained"]
     assert rep["gap_shrink"]["value"] >= 0.8 and rep["gap_shrink"]["ci95"][0] > 0
+
+
+def test_synth_gives_its_robots_coloured_heading_noise(tmp_path):
+    """``heading_noise_tau_s`` reaches every robot of the written world (its truth) and its tracks:
+    the same seed with white noise drives the same robots along other paths."""
+    white = synth("motion", "none", tmp_path / "w", robots=4, trials=2, seed=9, duration_s=20.0)
+    col = synth("motion", "none", tmp_path / "c", robots=4, trials=2, seed=9, duration_s=20.0, heading_noise_tau_s=2.0)
+    assert all(r["heading_noise_tau"] == 2.0 for r in col["robots"].values())
+    assert all(r["heading_noise_tau"] == 0.0 for r in white["robots"].values())
+    assert (tmp_path / "w" / "observations.csv").read_text() != (tmp_path / "c" / "observations.csv").read_text()
