@@ -84,12 +84,13 @@ def reproduce(out: str = "out/reproduce", preset: str = "paper", quick: bool = F
     return _reproduce(out, preset, quick, seed, workers, progress, scheduler)
 
 
-def synth(kind: str, hidden: str, out: str, robots: int | None = None, trials: int | None = None, seed: int = 0) -> dict:
+def synth(kind: str, hidden: str, out: str, robots: int | None = None, trials: int | None = None, seed: int = 0,
+          heading_noise_tau_s: float = 0.0) -> dict:
     """Write a measured-v1 dataset from the twin with the named effects hidden in it (+ truth.json)."""
     from .gap.synth import synth as _synth
 
     check_out_dir(out, new=True)
-    return _synth(kind, hidden, out, robots, trials, seed)
+    return _synth(kind, hidden, out, robots, trials, seed, heading_noise_tau_s=heading_noise_tau_s)
 
 
 def gap(data: list[str], out: str, model: str | None = None, seed: int = 0, quiet: bool = False) -> dict:
@@ -237,6 +238,8 @@ def _parser() -> argparse.ArgumentParser:
     sy.add_argument("--robots", type=_positive_int)
     sy.add_argument("--trials", type=_positive_int)
     sy.add_argument("--seed", type=int, default=0)
+    sy.add_argument("--heading-noise-tau", type=_correlation_time, default=0.0, metavar="S",
+                    help="motion: correlation time of every robot's turn-rate noise, s (default 0: white)")
     sy.add_argument("--out", required=True)
 
     g = sub.add_parser("gap", help="twin vs measurement: find the disagreement, name the effect, show the gap shrink")
@@ -308,6 +311,20 @@ def _scheduler(text: str) -> str:
     except ConfigError as exc:
         raise argparse.ArgumentTypeError(str(exc).removeprefix("scheduler: ")) from None
     return text
+
+
+def _correlation_time(text: str) -> float:
+    """A turn-rate noise correlation time, checked as the trait ``heading_noise_tau`` is."""
+    from .core.traits import traits_from_mapping
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a time in seconds, got {text!r}") from None
+    try:
+        return traits_from_mapping({"heading_noise_tau": v}).heading_noise_tau
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(f"{exc.problem}; {exc.fix}") from None
 
 
 def _positive_int(text: str) -> int:
@@ -385,7 +402,7 @@ def _main(argv=None, caught=()) -> int:
                             args.scheduler)
             print(f"{doc['met']} of {doc['total']} checks met in {doc['elapsed_s']:.0f} s; report: {args.out}/report.md")
         elif args.verb == "synth":
-            truth = synth(args.kind, args.hidden, args.out, args.robots, args.trials, args.seed)
+            truth = synth(args.kind, args.hidden, args.out, args.robots, args.trials, args.seed, args.heading_noise_tau)
             print(f"wrote {args.out} ({truth['kind']}, hidden: {', '.join(truth['hidden']) or 'none'})")
         elif args.verb == "gap":
             rep = gap(args.data, args.out, args.model, args.seed, args.quiet)

@@ -57,6 +57,8 @@ CASES = [
     (["synth", "--kind", "motion", "--out", "data"], "--out"),
     (["synth", "--kind", "motion", "--hidden", "warp_drive", "--out", "new_data"], "warp_drive"),
     (["synth", "--kind", "dance", "--out", "new_data"], "--kind"),
+    (["synth", "--kind", "motion", "--heading-noise-tau", "-1", "--out", "new_data"], "--heading-noise-tau"),
+    (["synth", "--kind", "motion", "--heading-noise-tau", "2s", "--out", "new_data"], "--heading-noise-tau"),
     (["gap", "data", "--out", "afile.txt"], "--out"),
     (["gap", "data", "--out", "data"], "--out"),
     (["gap", "missing_data", "--out", "gap_out"], "missing_data"),
