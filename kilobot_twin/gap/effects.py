@@ -20,6 +20,7 @@ import numpy as np
 from ..core.kinematics import heading_bias_from_turn_rate
 from ..core.traits import SwarmTraits
 from . import synth
+from .summaries import robust_sd
 
 
 @dataclass
@@ -343,7 +344,7 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     noise that is absent from the data comes out 0 rather than breaking the fit.
 
     The fourth statistic, the pooled within-robot variance of trial turn rates (its simulated
-    value the median over replicates: :func:`_replicate_centre`), bounds the
+    value the median over replicates, its scatter a robust sd: :func:`_replicate_centre`), bounds the
     heading noise from above: under heavy tracking noise the diffusion scatters by more than the
     heading noise it measures (4 mm of tracking noise on 2 s chords), while a robot's turn rate,
     a slope over the whole trial, still varies from trial to trial by little more than the
@@ -398,10 +399,10 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
             return max((target[3] + 2.0 * sd - A[3, 1] * var[1] - A[3, 2] * var[2]) / A[3, 0], 0.0)
 
         with np.errstate(all="ignore"):
-            b = bound(_replicate_sd(reps[0][:, 3]))
+            b = bound(float(robust_sd(reps[0][:, 3])))
             at = model.with_traits(sigma_omega=np.full(n, np.sqrt(b)), sigma_v=np.full(n, np.sqrt(var[1])),
                                    speed_trial_sd=float(np.sqrt(var[2])), bias_trial_sd=np.zeros(n))
-            sd = _replicate_sd(_noise_stats(resim(at))[:, 3])
+            sd = float(robust_sd(_noise_stats(resim(at))[:, 3]))
         b = bound(sd) if np.isfinite(sd) else np.inf
         if var[0] > b:
             # The speed noises again from their own rows (the diffusion's excess is not theirs).
@@ -578,13 +579,6 @@ def _replicate_centre(st):
         c = np.nanmean(st, axis=0)
         c[3] = np.nanmedian(st[:, 3])
     return c
-
-
-def _replicate_sd(x):
-    """The replicates' scatter of one statistic: 1.4826 x their median absolute deviation (a
-    replicate whose headings slipped does not set it; see :func:`_replicate_centre`)."""
-    with np.errstate(all="ignore"):
-        return float(1.4826 * np.nanmedian(np.abs(x - np.nanmedian(x))))
 
 
 class MotionNoise(Effect):

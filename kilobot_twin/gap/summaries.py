@@ -226,6 +226,15 @@ def _second_difference(a):
     return d
 
 
+def robust_sd(x, axis=None):
+    """1.4826 x the median absolute deviation from the median, NaNs left out: the sd of a normal
+    sample that a share of gross errors (glitches, slipped headings) does not move."""
+    x = np.asarray(x, dtype=float)
+    with np.errstate(all="ignore"):
+        med = np.nanmedian(x, axis=axis, keepdims=True)
+        return 1.4826 * np.nanmedian(np.abs(x - med), axis=axis)
+
+
 def tracking_noise(x, y) -> float:
     """Position noise sd (m) of the tracker, from within-track statistics only.
 
@@ -238,7 +247,7 @@ def tracking_noise(x, y) -> float:
     d = d[np.isfinite(d)]
     if d.size < 10:
         return 0.0
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(1.5))
+    return float(robust_sd(d) / np.sqrt(1.5))
 
 
 def _interp_residual(a, max_span: int = 6):

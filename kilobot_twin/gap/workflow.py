@@ -43,6 +43,7 @@ from ..core.kinematics import heading_bias_from_turn_rate
 from ..recording import measured
 from ..errors import ConfigError
 from . import effects as E
+from . import summaries
 from .model import COMPONENTS, Conditions, measured_summaries, simulate
 
 
@@ -383,7 +384,7 @@ def _without_wild_replicates(x, k: float = 10.0):
     every robot's."""
     with np.errstate(all="ignore"):
         med = np.nanmedian(x, axis=0)
-        scale = 1.4826 * np.nanmedian(np.abs(x - med), axis=0)
+        scale = summaries.robust_sd(x, axis=0)
         wild = np.abs(x - med) > k * np.where(scale > 0, scale, np.inf)
     return np.where(wild, np.nan, x)
 

@@ -4,6 +4,7 @@ import numpy as np
 
 from kilobot_twin.gap import effects as E
 from kilobot_twin.gap.model import Conditions, simulate
+from kilobot_twin.gap.summaries import robust_sd
 
 
 def _conditions(n=12, trials=4, duration=60.0, dt=0.1):
@@ -237,5 +238,5 @@ def test_a_slipped_replicate_sets_neither_the_turn_rate_statistic_nor_its_scatte
     gap = np.max(np.diff(v[8:12]))  # the spacing around the median
     assert abs(E._replicate_centre(hit)[3] - E._replicate_centre(clean)[3]) <= gap
     np.testing.assert_array_equal(E._replicate_centre(hit)[:3], E._replicate_centre(clean)[:3])
-    assert E._replicate_sd(hit[:, 3]) < 1.3 * E._replicate_sd(clean[:, 3])
+    assert robust_sd(hit[:, 3]) < 1.3 * robust_sd(clean[:, 3])
     assert np.std(hit[:, 3], ddof=1) > 2 * np.std(clean[:, 3], ddof=1)
