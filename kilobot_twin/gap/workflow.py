@@ -1106,11 +1106,11 @@ def run_gap(data: list[str], out: str | Path, model_path: str | None = None, gs:
     """Run the workflow on every dataset and write DIR/report.json, DIR/model.yaml, DIR/report.md."""
     import yaml
 
+    datasets = [_load_data(d) for d in data]  # every dataset checked before anything is written
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     sections, models, residuals = [], [], []
-    for d in data:
-        ds = _load_data(d)
+    for ds in datasets:
         base = _load_base(model_path, ds.kind, ds.robots) if model_path else None
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # robots missing from whole trials
@@ -1162,10 +1162,18 @@ def _combine(sections, key):
 def _load_data(path: str) -> measured.Dataset:
     p = Path(path)
     if (p / "meta.yaml").is_file():
-        return measured.load(p)
-    if (p / "metadata.yaml").is_file() or (p / f"{p.name}_0.mcap").is_file():  # an unfinalised bag too
+        ds, where = measured.load(p), str(p / "meta.yaml")
+    elif (p / "metadata.yaml").is_file() or (p / f"{p.name}_0.mcap").is_file():  # an unfinalised bag too
         from .bags import dataset_from_bag
 
-        return dataset_from_bag(p)
-    raise ConfigError(str(p), "neither a measured dataset (meta.yaml) nor a bag (metadata.yaml)",
-                      "give a dataset folder or a bag directory")
+        ds, where = dataset_from_bag(p), str(p)
+    else:
+        raise ConfigError(str(p), "neither a measured dataset (meta.yaml) nor a bag (metadata.yaml)",
+                          "give a dataset folder or a bag directory")
+    # The motion summaries and the simulations under the data's conditions assume robots commanded
+    # to drive straight: a random walk's or phototaxis's turns would read as heading noise and bias.
+    behavior = ds.meta.get("behavior", "straight") if ds.kind == "motion" else "straight"
+    if behavior != "straight":
+        raise ConfigError(f"{where}: behavior", f"the gap workflow models straight runs, not {behavior}",
+                          "hold the twin against trials in which the robots were commanded to drive straight")
+    return ds

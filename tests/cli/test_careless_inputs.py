@@ -6,6 +6,7 @@ exactly what it held before (no half-made output folder, no bag, no log folder).
 """
 
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -29,6 +30,10 @@ def scratch(tmp_path_factory):
     from kilobot_twin.gap.synth import synth
 
     synth("motion", "none", d / "data", robots=2, trials=2, seed=1, duration_s=10.0)
+    # The same tracks labelled as a random walk: the gap workflow models straight runs only.
+    shutil.copytree(d / "data", d / "walk_data")
+    meta = yaml.safe_load((d / "walk_data" / "meta.yaml").read_text())
+    (d / "walk_data" / "meta.yaml").write_text(yaml.safe_dump(dict(meta, behavior="random_walk")))
     return d
 
 
@@ -65,6 +70,8 @@ CASES = [
     (["gap", "emptydir", "--out", "gap_out"], "emptydir"),
     (["gap", "afile.txt", "--out", "gap_out"], "afile.txt"),
     (["gap", "data", "--model", "missing.yaml", "--out", "gap_out"], "missing.yaml"),
+    (["gap", "walk_data", "--out", "gap_out"], "behavior"),
+    (["gap", "data", "walk_data", "--out", "gap_out"], "random_walk"),
     (["traits", "draw", "missing.yaml", "--out", "t.yaml"], "missing.yaml"),
     (["traits", "draw", POP, "--out", "emptydir"], "--out"),
     (["traits", "draw", POP, "--out", "afile.txt/t.yaml"], "--out"),
