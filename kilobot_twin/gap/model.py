@@ -7,6 +7,7 @@ returns the same per-(trial, robot) summaries as the measured data, shaped (M, t
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 
@@ -44,6 +45,11 @@ class Conditions:
     observed: np.ndarray  # (K, N, T) bool
     start: tuple | None = None  # motion: (x0, y0, theta0) each (K, N)
     tracking_noise_m: float = 0.002
+    #: A tracker whose errors persist from frame to frame: on top of ``tracking_noise_m`` (then the
+    #: independent part), noise of this sd correlated over ``tracking_tau_s`` (Ornstein-Uhlenbeck;
+    #: :func:`summaries.tracking_noise_correlation`). 0: independent frames.
+    tracking_correlated_m: float = 0.0
+    tracking_tau_s: float = 0.0
     #: What the robots were programmed to do, from the dataset's meta: the commanded speed
     #: (motion; per-robot speed factors are relative to it) and the LED program (blink: toggle
     #: every ``half_period_ticks`` of a clock at ``tick_hz``; clock rates are relative to it).
@@ -73,13 +79,17 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         noise = summaries.tracking_noise(x, y)
         x, y, _ = summaries.reject_glitches(x, y, noise)
         noise = summaries.tracking_noise(x, y)
+        # Whether the tracker's errors persist from frame to frame (at the recorded frame rate):
+        # the simulations then reproduce them, since they bend a track over seconds as the heading
+        # noise does and would otherwise be read as it.
+        corr = summaries.tracking_noise_correlation(x, y, ds.dt_s)
         x, y = summaries.mask_before_onset(x, y, noise)
         x, y = x[..., ::q], y[..., ::q]
         observed = np.isfinite(x)
-        s = summaries.motion(x, y, dt_s, wander_lags_s=summaries.wander_lags(noise))
-        start = _start_poses(x, y, dt_s)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed, start, noise,
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed, _start_poses(x, y, dt_s),
+                          corr["white_m"], corr["correlated_m"], corr["tau_s"],
                           forward_speed_m_s=float(ds.meta.get("nominal_speed_m_s", synth.FORWARD_SPEED_M_S)))
+        s = summaries.motion(x, y, dt_s, wander_lags_s=summaries.wander_lags(total_tracking_noise(cond)))
     elif kind == "light_sweep":
         st, rd = ds.grid("stimulus")[1][..., ::q], ds.grid("reading")[1][..., ::q]
         observed = np.isfinite(rd)
@@ -93,6 +103,24 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
                           half_period_ticks=int(ds.meta.get("half_period_ticks", synth.HALF_PERIOD_TICKS)),
                           tick_hz=float(ds.meta.get("nominal_tick_hz", synth.TICK_HZ)))
     return cond, s
+
+
+def total_tracking_noise(cond: Conditions) -> float:
+    """The tracker's whole position noise sd: the independent and the correlated parts."""
+    return float(np.hypot(cond.tracking_noise_m, cond.tracking_correlated_m))
+
+
+def _correlated_noise(rng, shape, sd: float, tau_s: float, dt_s: float):
+    """Ornstein-Uhlenbeck noise of sd ``sd`` sampled every ``dt_s`` along the last axis, in its
+    stationary law from the first sample: e[j] = c e[j-1] + sd sqrt(1 - c^2) z[j], c = exp(-dt/tau)."""
+    from scipy.signal import lfilter
+
+    c = math.exp(-dt_s / tau_s)
+    u = rng.standard_normal(shape)
+    u[..., 1:] *= math.sqrt(1.0 - c * c)
+    out = lfilter([1.0], [1.0, -c], u, axis=-1)
+    out *= sd
+    return out
 
 
 def _start_poses(x, y, dt_s, lag_s=2.0):
@@ -149,6 +177,8 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
         for a in (x, y):
             z = rng.standard_normal(mask.shape)
             z *= cond.tracking_noise_m
+            if cond.tracking_correlated_m > 0:
+                z += _correlated_noise(rng, mask.shape, cond.tracking_correlated_m, cond.tracking_tau_s, cond.dt_s)
             if f is not None:
                 a0 = a[..., :1].copy()
                 a -= a0
@@ -157,7 +187,8 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
             z += a
             z[hidden] = np.nan
             tracks.append(z)
-        s = summaries.motion(*tracks, cond.dt_s, wander_lags_s=summaries.wander_lags(cond.tracking_noise_m), threads=THREADS)
+        s = summaries.motion(*tracks, cond.dt_s, wander_lags_s=summaries.wander_lags(total_tracking_noise(cond)),
+                              threads=THREADS)
     elif cond.kind == "light_sweep":
         sc = synth.light_scenario(cond.duration_s, cond.dt_s)
         res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, threads=THREADS,

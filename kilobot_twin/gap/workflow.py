@@ -1075,7 +1075,9 @@ def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
     if base.kind == "motion":
         return {"sigma_omega_rad_sqrt_s": float(sw.sigma_omega.mean()), "sigma_v_m_sqrt_s": float(sw.sigma_v.mean()),
                 "speed_trial_sd": float(base.speed_trial_sd), "bias_trial_sd": float(sw.bias_trial_sd.mean()),
-                "tracking_noise_m": float(cond.tracking_noise_m)}
+                "tracking_noise_m": float(cond.tracking_noise_m),
+                **({"tracking_correlated_m": float(cond.tracking_correlated_m), "tracking_tau_s": float(cond.tracking_tau_s)}
+                   if cond.tracking_correlated_m > 0 else {})}
     if base.kind == "light_sweep":
         return {"sensor_noise_counts": float(sw.sensor_noise.mean())}
     return {"clock_trial_sd": float(sw.clock_trial_sd.mean()), "frame_lead": base.frame_lead}

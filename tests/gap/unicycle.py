@@ -19,3 +19,14 @@ def tracks(rng, th, v: float, dt: float, e: float, speed_noise: float = 0.0):
     x = np.cumsum(step * np.cos(th), -1) + e * rng.standard_normal(th.shape)
     y = np.cumsum(step * np.sin(th), -1) + e * rng.standard_normal(th.shape)
     return x, y
+
+
+def ou_noise(rng, R: int, T: int, dt: float, sd: float, tau: float) -> np.ndarray:
+    """(R, T) tracking errors that persist from frame to frame: an Ornstein-Uhlenbeck process of
+    sd ``sd`` and correlation time ``tau`` (s), sampled every dt, stepped exactly frame by frame."""
+    e = np.empty((R, T))
+    e[:, 0] = sd * rng.standard_normal(R)
+    c = np.exp(-dt / tau)
+    for j in range(1, T):
+        e[:, j] = c * e[:, j - 1] + sd * np.sqrt(1 - c * c) * rng.standard_normal(R)
+    return e
