@@ -7,14 +7,13 @@ returns the same per-(trial, robot) summaries as the measured data, shaped (M, t
 
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..batch import engine
-from ..core import sim
+from ..core import kinematics, sim
 from ..core.traits import SwarmTraits
 from ..recording import measured
 from . import summaries, synth
@@ -112,13 +111,14 @@ def total_tracking_noise(cond: Conditions) -> float:
 
 def _correlated_noise(rng, shape, sd: float, tau_s: float, dt_s: float):
     """Ornstein-Uhlenbeck noise of sd ``sd`` sampled every ``dt_s`` along the last axis, in its
-    stationary law from the first sample: e[j] = c e[j-1] + sd sqrt(1 - c^2) z[j], c = exp(-dt/tau)."""
+    stationary law from the first sample: the unit AR(1) sequence of the core's coloured turn-rate
+    noise (:func:`kinematics.turn_noise_coefficients`: e[j] = a e[j-1] + c z[j]), times ``sd``."""
     from scipy.signal import lfilter
 
-    c = math.exp(-dt_s / tau_s)
+    a, c, _ = (float(v) for v in kinematics.turn_noise_coefficients(1.0, tau_s, dt_s))
     u = rng.standard_normal(shape)
-    u[..., 1:] *= math.sqrt(1.0 - c * c)
-    out = lfilter([1.0], [1.0, -c], u, axis=-1)
+    u[..., 1:] *= c
+    out = lfilter([1.0], [1.0, -a], u, axis=-1)
     out *= sd
     return out
 

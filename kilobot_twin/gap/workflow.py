@@ -1174,8 +1174,7 @@ def _load_data(path: str) -> measured.Dataset:
                           "give a dataset folder or a bag directory")
     # The motion summaries and the simulations under the data's conditions assume robots commanded
     # to drive straight: a random walk's or phototaxis's turns would read as heading noise and bias.
-    behavior = ds.meta.get("behavior", "straight") if ds.kind == "motion" else "straight"
-    if behavior != "straight":
-        raise ConfigError(f"{where}: behavior", f"the gap workflow models straight runs, not {behavior}",
+    if ds.kind == "motion" and ds.meta.get("behavior", "straight") != "straight":
+        raise ConfigError(f"{where}: behavior", f"the gap workflow models straight runs, not {ds.meta['behavior']}",
                           "hold the twin against trials in which the robots were commanded to drive straight")
     return ds
