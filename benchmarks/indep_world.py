@@ -4,7 +4,8 @@ Shares no code with ``kilobot_twin`` (no import from it): its own continuous-tim
 (exact chord integration on a fine internal grid, parametrised by turn rate in rad/s and speed
 in m/s, not by wheel factors), its own noise (white or Ornstein-Uhlenbeck coloured turn-rate
 noise, white speed noise, trial-to-trial speed and turn-rate jitter), its own tracker (Gaussian
-position noise, heavy-tailed glitches of centimetres, dropped frames, tracking losses, jittered
+position noise, errors that persist over frames as a smoothing tracker's do (Ornstein-Uhlenbeck at
+the jittered frame times), heavy-tailed glitches of centimetres, dropped frames, tracking losses, jittered
 frame times, robots starting late, robots missing a whole trial, uneven trial lengths), its own
 light sensor (soft saturation with another knee, ADC quantisation) and its own blinking clocks
 (frequency offset, trial jitter, tick phase diffusion, late starts). The CSV and YAML are
@@ -65,6 +66,9 @@ NOMINAL = {
     "sensor_noise": (8.0, True, "ADC counts: reading noise sd"),
     "clock_trial_sd": (0.002, True, "relative sd of a clock's rate from trial to trial"),
     "tick_diffusion": (0.05, True, "ticks^2/s: phase diffusion of a clock"),
+    # Last, so that the levels above draw as they did before these two were added.
+    "tracking_correlated_m": (0.0015, True, "m: tracking error that persists over frames (sd per axis; a smoothing tracker)"),
+    "tracking_tau_s": (0.2, False, "s: correlation time of that error (Ornstein-Uhlenbeck)"),
 }
 EFFECTS = {"motion": ("heading_bias", "speed_heterogeneity", "bias_drift", "motion_noise", "floor_tilt"),
            "light_sweep": ("sensor_gain",), "blink": ("clock_drift",)}
@@ -115,7 +119,21 @@ def _ou(z, h, tau):
     return out + (a ** np.arange(1, z.shape[-1] + 1)) * sd * z[..., :1]  # start in the stationary law
 
 
-def motion(rng, shape, nz, hidden, effect_scale, program):
+def _ou_at(rng, t, sd, tau):
+    """Ornstein-Uhlenbeck noise of stationary sd ``sd`` and correlation time ``tau`` sampled exactly
+    at the times ``t`` (..., frames): x_j = a_j x_(j-1) + sd sqrt(1 - a_j^2) z_j with
+    a_j = exp(-|t_j - t_(j-1)| / tau), started in the stationary law."""
+    z = rng.standard_normal(t.shape)
+    a = np.exp(-np.abs(np.diff(t, axis=-1)) / tau)
+    b = sd * np.sqrt(1 - a * a)
+    out = np.empty(t.shape)
+    out[..., 0] = sd * z[..., 0]
+    for j in range(1, t.shape[-1]):
+        out[..., j] = a[..., j - 1] * out[..., j - 1] + b[..., j - 1] * z[..., j]
+    return out
+
+
+def motion(rng, shape, nz, hidden, effect_scale, program, track_rng=None):
     n, K, hz = shape["robots"], shape["trials"], shape["frame_hz"]
     v_cmd = program["commanded_speed_m_s"]
     v_pop = v_cmd * rng.uniform(0.85, 1.15)
@@ -178,6 +196,9 @@ def motion(rng, shape, nz, hidden, effect_scale, program):
         py = y[r, j] + c * np.sin(a0 + 0.5 * wj * tau)
         px = px + nz["tracking_noise_m"] * rng.standard_normal(px.shape)
         py = py + nz["tracking_noise_m"] * rng.standard_normal(py.shape)
+        if nz.get("tracking_correlated_m", 0.0) > 0:  # from its own stream: the rest draws as before
+            e = _ou_at(track_rng, np.broadcast_to(tf, (2,) + tf.shape), nz["tracking_correlated_m"], nz["tracking_tau_s"])
+            px, py = px + e[0], py + e[1]
         g = rng.random(px.shape) < nz["glitch_p"]
         px[g] += nz["glitch_m"] * rng.standard_t(2, g.sum())
         py[g] += nz["glitch_m"] * rng.standard_t(2, g.sum())
@@ -322,7 +343,7 @@ def generate(kind: str, hidden, out, seed: int = 0, nuisance_scale: float | None
         if h not in EFFECTS[kind]:
             raise ValueError(f"--hidden: {h} is not an effect of {kind} (use {', '.join(EFFECTS[kind])})")
     root = np.random.SeedSequence([seed, 0x1D3])
-    s_shape, s_nuis, s_world, s_prog = (np.random.default_rng(s) for s in root.spawn(4))  # the first 3 as before
+    s_shape, s_nuis, s_world, s_prog, s_track = (np.random.default_rng(s) for s in root.spawn(5))  # the first 4 as before
     program = draw_program(s_prog if program == "random" else None) | (program if isinstance(program, dict) else {})
     shape = draw_shape(s_shape, kind, fixed_shape)
     nz = draw_nuisance(s_nuis, nuisance_scale)
@@ -331,7 +352,8 @@ def generate(kind: str, hidden, out, seed: int = 0, nuisance_scale: float | None
             raise ValueError(f"nuisance: {k} is not a nuisance level (use {', '.join(NOMINAL)})")
         nz[k] = float(v)
     fn = {"motion": motion, "light_sweep": light_sweep, "blink": blink}[kind]
-    rows, columns, meta, per_robot, extra = fn(s_world, shape, nz, hidden, effect_scale, program)
+    rows, columns, meta, per_robot, extra = fn(s_world, shape, nz, hidden, effect_scale, program,
+                                               **({"track_rng": s_track} if kind == "motion" else {}))
     meta.update({"robots": list(range(shape["robots"])), "trials": shape["trials"],
                  "duration_s": float(max(shape["lengths_s"]))})
     out = Path(out)

@@ -110,3 +110,44 @@ def test_a_forced_correlation_time_replaces_only_that_level(tmp_path):
     with pytest.raises(ValueError, match="heading_tau is not a nuisance level"):
         iw.generate("motion", "none", tmp_path / "d", seed=4, nuisance={"heading_tau": 1.0})
     assert not (tmp_path / "d").exists()
+
+
+def test_the_worlds_persistent_tracking_error_is_an_exact_ornstein_uhlenbeck_process():
+    """``_ou_at`` samples OU noise exactly at uneven times: its sd is the stationary one from the
+    first frame on, and frames |dt| apart correlate as exp(-|dt| / tau) (theory, not a fit)."""
+    rng = np.random.default_rng(11)
+    t = np.cumsum(rng.uniform(0.02, 0.18, (4000, 60)), axis=1)  # uneven, as jittered frames are
+    sd, tau = 0.003, 0.25
+    e = iw._ou_at(rng, t, sd, tau)
+    # 4000 samples per column: an sd's relative standard error is 1/sqrt(2 x 4000) = 1.1 %.
+    np.testing.assert_allclose(e.std(axis=0)[[0, 30, 59]], sd, rtol=0.045)
+    for j in (1, 10):  # correlation of frame j with frame j+1, whose gap differs per row
+        gap = t[:, j + 1] - t[:, j]
+        short, long_ = gap < 0.06, gap > 0.14
+        for m in (short, long_):
+            r = np.mean(e[m, j] * e[m, j + 1]) / sd**2
+            expect = np.mean(np.exp(-gap[m] / tau))
+            assert abs(r - expect) < 4 / np.sqrt(m.sum()), (j, r, expect)
+
+
+def test_persistent_tracking_error_is_added_on_its_own_stream_and_the_twin_reads_it(tmp_path):
+    """Turned off, the world writes what it wrote before the tracker error was added (nothing else
+    draws from its stream); turned on, the positions differ by the error alone; and the project's
+    estimator (a second implementation) reads its size and correlation time from the data."""
+    base = {"tracking_noise_m": 0.001, "glitch_p": 0.0, "heading_noise": 0.01, "speed_noise": 0.0005}
+    off = iw.generate("motion", "none", tmp_path / "off", seed=6, nuisance={**base, "tracking_correlated_m": 0.0})
+    on = iw.generate("motion", "none", tmp_path / "on", seed=6,
+                     nuisance={**base, "tracking_correlated_m": 0.003, "tracking_tau_s": 0.25})
+    a = np.loadtxt(tmp_path / "off" / "observations.csv", delimiter=",", skiprows=1)
+    b = np.loadtxt(tmp_path / "on" / "observations.csv", delimiter=",", skiprows=1)
+    assert off["shape"] == on["shape"] and a.shape == b.shape
+    np.testing.assert_array_equal(a[:, :3], b[:, :3])
+    d = b[:, 3:] - a[:, 3:]
+    assert 0.0027 < d.std() < 0.0033 and abs(np.corrcoef(d[:-1, 0], d[1:, 0])[0, 1]) > 0.2
+    # Tolerances: 4x the sd over 12 seeds of this world at these levels (1.4 %, 2.9 %, 4.6 %).
+    cond, _ = measured_summaries(measured.load(tmp_path / "on"))
+    assert cond.tracking_correlated_m == pytest.approx(0.003, rel=0.06)
+    assert cond.tracking_tau_s == pytest.approx(0.25, rel=0.12)
+    assert cond.tracking_noise_m == pytest.approx(0.001, rel=0.2)
+    cond, _ = measured_summaries(measured.load(tmp_path / "off"))
+    assert cond.tracking_correlated_m == 0.0 and cond.tracking_noise_m == pytest.approx(0.001, rel=0.1)
