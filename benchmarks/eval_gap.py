@@ -107,7 +107,12 @@ def _write(job: dict, ds: Path, effect_scale: float) -> dict:
         # 0.25-4, white with probability 0.15 (drawn after the levels, which stay as they were).
         tau = 0.5 * float(np.exp(rng.uniform(np.log(0.25), np.log(4.0))))
         tau = 0.0 if rng.random() < 0.15 else tau
-        obs = Observation(tracking_noise_m=0.002 * f.pop("tracking"))
+        # A tracker whose errors persist over frames, as the independent world draws it (drawn
+        # after the above, which stay as they were): 1.5 mm x 0.25-4 (none with probability
+        # 0.15), correlated over 0.2 s x 0.25-4.
+        corr = 0.0015 * float(np.exp(rng.uniform(np.log(0.25), np.log(4.0)))) * (rng.random() >= 0.15)
+        corr_tau = 0.2 * float(np.exp(rng.uniform(np.log(0.25), np.log(4.0))))
+        obs = Observation(tracking_noise_m=0.002 * f.pop("tracking"), tracking_correlated_m=corr, tracking_tau_s=corr_tau)
         return synth(kind, hidden, ds, seed=seed, obs=obs, nuisance=f, heading_noise_tau_s=tau)
     return synth(kind, hidden, ds, seed=seed)
 

@@ -13,10 +13,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..batch import engine
-from ..core import kinematics, sim
+from ..core import sim
 from ..core.traits import SwarmTraits
 from ..recording import measured
-from . import summaries, synth
+from . import observe, summaries, synth
 
 #: Which summaries each kind compares (the detection/scoring components).
 COMPONENTS = {
@@ -109,20 +109,6 @@ def total_tracking_noise(cond: Conditions) -> float:
     return float(np.hypot(cond.tracking_noise_m, cond.tracking_correlated_m))
 
 
-def _correlated_noise(rng, shape, sd: float, tau_s: float, dt_s: float):
-    """Ornstein-Uhlenbeck noise of sd ``sd`` sampled every ``dt_s`` along the last axis, in its
-    stationary law from the first sample: the unit AR(1) sequence of the core's coloured turn-rate
-    noise (:func:`kinematics.turn_noise_coefficients`: e[j] = a e[j-1] + c z[j]), times ``sd``."""
-    from scipy.signal import lfilter
-
-    a, c, _ = (float(v) for v in kinematics.turn_noise_coefficients(1.0, tau_s, dt_s))
-    u = rng.standard_normal(shape)
-    u[..., 1:] *= c
-    out = lfilter([1.0], [1.0, -a], u, axis=-1)
-    out *= sd
-    return out
-
-
 def _start_poses(x, y, dt_s, lag_s=2.0):
     """First observed position and the heading of the first observed lagged displacement."""
     K, N, T = x.shape
@@ -178,7 +164,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
             z = rng.standard_normal(mask.shape)
             z *= cond.tracking_noise_m
             if cond.tracking_correlated_m > 0:
-                z += _correlated_noise(rng, mask.shape, cond.tracking_correlated_m, cond.tracking_tau_s, cond.dt_s)
+                z += observe.correlated_noise(rng, mask.shape, cond.tracking_correlated_m, cond.tracking_tau_s, cond.dt_s)
             if f is not None:
                 a0 = a[..., :1].copy()
                 a -= a0

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core import kinematics
+
 
 @dataclass(frozen=True)
 class Observation:
@@ -20,6 +22,9 @@ class Observation:
     jitter_s : sample times jitter uniformly by +-jitter_s around the nominal grid.
     drop_p : probability that a single frame is missing.
     gap_rate_per_s, gap_s : tracking losses start at this rate and last up to gap_s seconds.
+    tracking_correlated_m, tracking_tau_s : on top of ``tracking_noise_m``, an error that persists
+        from frame to frame (a tracker that smooths): Ornstein-Uhlenbeck noise of this sd and
+        correlation time (:func:`correlated_noise`); 0: independent frames.
     """
 
     tracking_noise_m: float = 0.002
@@ -27,6 +32,8 @@ class Observation:
     drop_p: float = 0.02
     gap_rate_per_s: float = 1 / 60
     gap_s: float = 2.0
+    tracking_correlated_m: float = 0.0
+    tracking_tau_s: float = 0.0
 
     def mask(self, shape, dt_s: float, rng: np.random.Generator) -> np.ndarray:
         """Boolean 'observed' mask (..., T): dropped frames and tracking-loss gaps removed."""
@@ -45,6 +52,20 @@ def noisy_positions(x, y, obs: Observation, rng: np.random.Generator):
     """Add tracking noise to true positions (same shape)."""
     return (x + obs.tracking_noise_m * rng.standard_normal(np.shape(x)),
             y + obs.tracking_noise_m * rng.standard_normal(np.shape(y)))
+
+
+def correlated_noise(rng, shape, sd: float, tau_s: float, dt_s: float):
+    """Ornstein-Uhlenbeck noise of sd ``sd`` sampled every ``dt_s`` along the last axis, in its
+    stationary law from the first sample: the unit AR(1) sequence of the core's coloured turn-rate
+    noise (:func:`kinematics.turn_noise_coefficients`: e[j] = a e[j-1] + c z[j]), times ``sd``."""
+    from scipy.signal import lfilter
+
+    a, c, _ = (float(v) for v in kinematics.turn_noise_coefficients(1.0, tau_s, dt_s))
+    u = rng.standard_normal(shape)
+    u[..., 1:] *= c
+    out = lfilter([1.0], [1.0, -a], u, axis=-1)
+    out *= sd
+    return out
 
 
 def jittered_times(t_s, shape, obs: Observation, rng: np.random.Generator):

@@ -21,7 +21,7 @@ from ..core.kinematics import MotorConfig
 from ..core.scenario import scenario_from_dict
 from ..core.traits import SwarmTraits
 from ..errors import ConfigError
-from .observe import Observation, jittered_times, noisy_positions
+from .observe import Observation, correlated_noise, jittered_times, noisy_positions
 
 # The twin's nominal robot (what the base model assumes where it does not fit the data).
 NOMINAL_MOTION_NOISE = {"sigma_omega": 0.01, "sigma_v": 0.0005}
@@ -168,6 +168,9 @@ def _motion(swarm, K, T, dt, seed, tilt, obs, rng):
     shape = x.shape
     keep = obs.mask(shape, dt, rng)
     t = jittered_times(res.t_s, shape, obs, rng)
+    if obs.tracking_correlated_m > 0:  # drawn last: every other draw is as without it
+        x = x + correlated_noise(rng, shape, obs.tracking_correlated_m, obs.tracking_tau_s, dt)
+        y = y + correlated_noise(rng, shape, obs.tracking_correlated_m, obs.tracking_tau_s, dt)
     tracks = _tracks(swarm.ids, t, keep, x_m=x, y_m=y)
     meta = {"kind": "motion", "dt_s": dt, "behavior": "straight", "nominal_speed_m_s": FORWARD_SPEED_M_S,
             "tracking_noise_m": obs.tracking_noise_m}

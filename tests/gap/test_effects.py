@@ -247,10 +247,10 @@ def test_the_simulated_tracker_repeats_errors_that_persist_from_frame_to_frame(m
     autocorrelation exp(-k dt / tau) at k frames; 400k samples give a standard error near 0.002),
     and simulated tracks carrying it (the span-5 second difference, 3/2 sd^2 for independent
     frames at every span, is larger than the span-1 one by the theory's factor, within 5 %)."""
-    from kilobot_twin.gap.model import _correlated_noise
+    from kilobot_twin.gap.observe import correlated_noise
 
     dt, tau, sd = 0.1, 0.3, 0.003
-    e = _correlated_noise(np.random.default_rng(2), (200, 2000), sd, tau, dt)
+    e = correlated_noise(np.random.default_rng(2), (200, 2000), sd, tau, dt)
     assert abs(e.std() / sd - 1) < 0.02
     for k in (1, 5):
         r = np.mean(e[:, k:] * e[:, :-k]) / np.mean(e * e)
