@@ -19,6 +19,11 @@ from ..batch import engine
 #: is small against the displacement (1.13 cm/s x 2 s), short enough to follow curvature.
 MOTION_LAG_S = 2.0
 
+#: A track's mean heading over one lag-long block differs from the next block's by this much
+#: only where the unwrapped heading slipped by a whole turn (:func:`motion`): a slip of 2 pi
+#: spreads over at most two block boundaries, so one of them jumps by at least pi.
+SLIP_RAD = 0.75 * math.pi
+
 
 def _ffill(a):
     """Forward-fill NaNs along the last axis (leading NaNs stay NaN)."""
@@ -164,6 +169,20 @@ def _motion_tracks(x, y, L, w1, w2, s1, s2, dt, out):  # pragma: no cover - comp
                 sxy += dtj * (u[j] - hm)
                 sxx += dtj * dtj
         turn = sxy / max(sxx, 1e-12)
+        # A heading that slipped by a whole turn (a run of chords turned round by tracking error,
+        # each within a quarter turn of the last) leaves the track without a turn rate: the mean
+        # headings of consecutive lag-long blocks then jump by over SLIP_RAD.
+        prev, have = 0.0, False
+        for b0 in range(0, Th, L):
+            sm, cnt = 0.0, 0
+            for j in range(b0, min(b0 + L, Th)):
+                if ok[j]:
+                    sm += u[j]
+                    cnt += 1
+            if cnt * 4 >= L:
+                if have and abs(sm / cnt - prev) > SLIP_RAD:
+                    turn = np.nan
+                prev, have = sm / cnt, True
         wander = np.zeros(2)
         for q, w in enumerate((w1, w2)):
             m, ls, ss = 0, 0.0, 0.0

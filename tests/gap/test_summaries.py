@@ -47,6 +47,28 @@ def test_a_glitch_that_reverses_a_chord_does_not_slip_the_heading():
     assert abs(s["speed"][0] / v - 1) < 0.02
 
 
+def test_a_heading_that_slips_by_whole_turns_leaves_no_turn_rate():
+    """A straight track (true turn rate 0) whose tracked point circles 4 cm around the robot once
+    over 3 s, then stays on it: chords are 2.3 cm, so each chord's heading winds round once as its
+    end, then its start, passes the loop, each step within a quarter turn of the last (no chord is
+    refused), and the unwrapped heading ends 4 pi off. Its least-squares turn rate would be a
+    fiction of the tracker; the track has none. Ordinary tracks (the tests' own unicycle, 2 mm of
+    tracking noise, headings diffusing at 4x the nominal intensity) all keep theirs."""
+    rng = np.random.default_rng(5)
+    T, dt, v = 601, 0.1, synth.FORWARD_SPEED_M_S
+    t = np.arange(T) * dt
+    x = v * t + 0.002 * rng.standard_normal(T)
+    y = 0.002 * rng.standard_normal(T)
+    assert np.isfinite(summaries.motion(x[None], y[None], dt)["turn_rate"][0])
+    phi = np.clip((t - 30.0) / 3.0, 0, 1) * 2 * np.pi
+    xs, ys = x + 0.04 * (np.cos(phi) - 1), y + 0.04 * np.sin(phi)
+    s = summaries.motion(xs[None], ys[None], dt)
+    assert np.isnan(s["turn_rate"][0]) and abs(s["speed"][0] / v - 1) < 0.2
+    th = unicycle.brownian_headings(rng, 400, T, dt, 16e-4)
+    xo, yo = unicycle.tracks(rng, th, v, dt, 0.002)
+    assert np.isfinite(summaries.motion(xo, yo, dt)["turn_rate"]).all()
+
+
 def test_diffusion_of_a_diffusing_heading_matches_theory():
     """A unicycle of its own (not the twin's): speed 1 cm/s, heading a Brownian motion of intensity
     sigma^2 = 4e-4 rad^2/s, 10 minute tracks at 10 Hz, 2 mm tracking noise. The sideways second
@@ -161,6 +183,16 @@ def _motion_vectorised(x, y, dt_s, lag_s=2.0, wander_lags_s=(1.0, 10.0), speed_l
     hm = np.where(ok, u, 0).sum(-1) / np.maximum(n, 1)
     dt_ = np.where(ok, t - tm[..., None], 0.0)
     turn = (dt_ * np.where(ok, u - hm[..., None], 0.0)).sum(-1) / np.maximum((dt_**2).sum(-1), 1e-12)
+    # A slipped heading: the means of u over lag-long blocks (a quarter of them observed at least)
+    # jump by over SLIP_RAD between neighbouring blocks that have a mean.
+    nb = -(-u.shape[-1] // L)
+    pad = np.zeros(u.shape[:-1] + (nb * L - u.shape[-1],))
+    ub = np.concatenate([np.where(ok, u, 0.0), pad], -1).reshape(u.shape[:-1] + (nb, L))
+    cb = np.concatenate([ok, pad.astype(bool)], -1).reshape(u.shape[:-1] + (nb, L)).sum(-1)
+    with np.errstate(all="ignore"):
+        block = np.where(4 * cb >= L, ub.sum(-1) / cb, np.nan)
+        jump = np.abs(np.diff(ffill(block), axis=-1)) > summaries.SLIP_RAD
+    turn = np.where(jump.any(-1), np.nan, turn)
     speed = np.where(ok, dist, 0.0).sum(-1) / np.maximum(n, 1) / (L * dt_s)
     w1, w2 = (max(1, int(round(s / dt_s))) for s in wander_lags_s)
     z = x + 1j * y
@@ -181,12 +213,14 @@ def _motion_vectorised(x, y, dt_s, lag_s=2.0, wander_lags_s=(1.0, 10.0), speed_l
 
 
 def test_compiled_motion_summaries_equal_a_vectorised_second_implementation():
-    """Random walks crossing the +-pi cut many times (and turning so fast that chords are refused),
+    """Random walks crossing the +-pi cut many times (turning so fast that chords are refused and
+    the headings slip: no turn rate) and slower ones,
     with dropped frames, long losses, a track with too few samples, leading gaps and a track that
     never appears: both agree to 1e-9."""
     rng = np.random.default_rng(7)
     K, N, T, dt = 3, 7, 700, 1 / 15
     th = np.cumsum(rng.normal(0, 0.3, (K, N, T)), axis=-1) + rng.uniform(-3, 3, (K, N, 1))
+    th[:, 4:] *= 0.05  # and robots that turn slowly, whose headings do not slip
     x = np.cumsum(0.01 * np.cos(th), -1) + 0.002 * rng.standard_normal((K, N, T))
     y = np.cumsum(0.01 * np.sin(th), -1) + 0.002 * rng.standard_normal((K, N, T))
     drop = rng.random((K, N, T)) < 0.1
@@ -197,6 +231,8 @@ def test_compiled_motion_summaries_equal_a_vectorised_second_implementation():
     x, y = np.where(drop, np.nan, x), np.where(drop, np.nan, y)
     got, want = summaries.motion(x, y, dt, wander_lags_s=(1.0, 10.0)), _motion_vectorised(x, y, dt)
     assert np.isnan(got["turn_rate"][2, 3]) and np.isnan(got["speed"][2, 4])
+    # Both branches: fast walkers that slipped (no turn rate) and slow ones that did not.
+    assert np.isnan(got["turn_rate"][:, :4]).sum() >= 6 and np.isfinite(got["turn_rate"][:, 4:]).sum() == 8
     for k in want:
         np.testing.assert_allclose(got[k], want[k], rtol=1e-9, atol=1e-12, equal_nan=True, err_msg=k)
     # Shared over threads (enough tracks that three threads get some each): the same.
