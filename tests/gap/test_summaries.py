@@ -112,6 +112,18 @@ def test_tracking_noise_that_persists_from_frame_to_frame_is_measured_and_indepe
     assert abs(got["tau_s"] / 0.2 - 1) < 0.20, got
     # what the frame-to-frame statistic alone makes of it: far less than the noise there is
     assert summaries.tracking_noise(x, y) < 0.75 * np.hypot(0.002, 0.003)
+    # Correlated over 0.7 s (the independent world draws up to 0.8 s): over 20 seeds the parts come
+    # back at 0.999 +- 0.006, 0.985 +- 0.022 and 0.98 +- 0.044 of the truth; tolerances 4x those.
+    # With spans to 1 s and tau capped at 0.5 s, the correlated part came back at 0.72 +- 0.05.
+    rng = np.random.default_rng(105)
+    th = unicycle.brownian_headings(rng, R, T, dt, 4e-4)
+    x, y = unicycle.tracks(rng, th, 0.01, dt, 0.002, 0.0005)
+    x = x + unicycle.ou_noise(rng, R, T, dt, 0.003, 0.7)
+    y = y + unicycle.ou_noise(rng, R, T, dt, 0.003, 0.7)
+    got = summaries.tracking_noise_correlation(x, y, dt)
+    assert abs(got["white_m"] / 0.002 - 1) < 0.03, got
+    assert abs(got["correlated_m"] / 0.003 - 1) < 0.09, got
+    assert abs(got["tau_s"] / 0.7 - 1) < 0.18, got
 
 
 def test_light_sweep_gain_is_linear_slope():
