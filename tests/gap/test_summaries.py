@@ -98,32 +98,28 @@ def test_tracking_noise_that_persists_from_frame_to_frame_is_measured_and_indepe
     over 0.2 s added (Ornstein-Uhlenbeck stepped exactly, test-side), the three parts come back
     within about 4x their scatter over 20 seeds of this generator (2.2 %, 1.3 % and 4.4 %; tau's
     mean 3 % low): 10 %, 6 % and 20 %."""
-    rng = np.random.default_rng(5)
     R, T, dt = 100, 601, 0.1
-    th = unicycle.brownian_headings(rng, R, T, dt, 4e-4)
-    x, y = unicycle.tracks(rng, th, 0.01, dt, 0.002, 0.0005)
+
+    def tracks(seed, tau):
+        """The unicycle's tracks, and the same with 3 mm of error correlated over tau added."""
+        rng = np.random.default_rng(seed)
+        th = unicycle.brownian_headings(rng, R, T, dt, 4e-4)
+        x, y = unicycle.tracks(rng, th, 0.01, dt, 0.002, 0.0005)
+        return x, y, x + unicycle.ou_noise(rng, R, T, dt, 0.003, tau), y + unicycle.ou_noise(rng, R, T, dt, 0.003, tau)
+
+    x, y, xc, yc = tracks(5, 0.2)
     got = summaries.tracking_noise_correlation(x, y, dt)
     assert got == {"white_m": summaries.tracking_noise(x, y), "correlated_m": 0.0, "tau_s": 0.0}
-    x = x + unicycle.ou_noise(rng, R, T, dt, 0.003, 0.2)
-    y = y + unicycle.ou_noise(rng, R, T, dt, 0.003, 0.2)
-    got = summaries.tracking_noise_correlation(x, y, dt)
-    assert abs(got["white_m"] / 0.002 - 1) < 0.10, got
-    assert abs(got["correlated_m"] / 0.003 - 1) < 0.06, got
-    assert abs(got["tau_s"] / 0.2 - 1) < 0.20, got
-    # what the frame-to-frame statistic alone makes of it: far less than the noise there is
-    assert summaries.tracking_noise(x, y) < 0.75 * np.hypot(0.002, 0.003)
-    # Correlated over 0.7 s (the independent world draws up to 0.8 s): over 20 seeds the parts come
-    # back at 0.999 +- 0.006, 0.985 +- 0.022 and 0.98 +- 0.044 of the truth; tolerances 4x those.
-    # With spans to 1 s and tau capped at 0.5 s, the correlated part came back at 0.72 +- 0.05.
-    rng = np.random.default_rng(105)
-    th = unicycle.brownian_headings(rng, R, T, dt, 4e-4)
-    x, y = unicycle.tracks(rng, th, 0.01, dt, 0.002, 0.0005)
-    x = x + unicycle.ou_noise(rng, R, T, dt, 0.003, 0.7)
-    y = y + unicycle.ou_noise(rng, R, T, dt, 0.003, 0.7)
-    got = summaries.tracking_noise_correlation(x, y, dt)
-    assert abs(got["white_m"] / 0.002 - 1) < 0.03, got
-    assert abs(got["correlated_m"] / 0.003 - 1) < 0.09, got
-    assert abs(got["tau_s"] / 0.7 - 1) < 0.18, got
+    # what the frame-to-frame statistic alone makes of the correlated error: far less than there is
+    assert summaries.tracking_noise(xc, yc) < 0.75 * np.hypot(0.002, 0.003)
+    # Correlated over 0.7 s too (the independent world draws up to 0.8 s): over 20 seeds the parts
+    # come back at 0.999 +- 0.006, 0.985 +- 0.022 and 0.98 +- 0.044 of the truth; tolerances 4x
+    # those. With spans to 1 s and tau capped at 0.5 s, the correlated part came back at 0.72 +- 0.05.
+    for seed, tau, tol in ((5, 0.2, (0.10, 0.06, 0.20)), (105, 0.7, (0.03, 0.09, 0.18))):
+        _, _, xc, yc = tracks(seed, tau)
+        got = summaries.tracking_noise_correlation(xc, yc, dt)
+        for (key, truth), t in zip((("white_m", 0.002), ("correlated_m", 0.003), ("tau_s", tau)), tol):
+            assert abs(got[key] / truth - 1) < t, (tau, key, got)
 
 
 def test_light_sweep_gain_is_linear_slope():
