@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..batch import kernel
 from ..core import kinematics
 
 
@@ -62,7 +63,7 @@ def correlated_noise(rng, shape, sd: float, tau_s: float, dt_s: float):
     to ``scipy.signal.lfilter`` and its temporaries), with the same values either way."""
     a, c, _ = (float(v) for v in kinematics.turn_noise_coefficients(1.0, tau_s, dt_s))
     u = rng.standard_normal(shape)
-    _ar1()(u.reshape(-1, u.shape[-1]), a, c, float(sd))
+    kernel.compiled(_ar1_rows, _vectorised_ar1)(u.reshape(-1, u.shape[-1]), a, c, float(sd))
     return u
 
 
@@ -76,23 +77,6 @@ def _ar1_rows(u, a, c, sd):  # pragma: no cover - compiled
         for j in range(1, T):
             prev = c * u[r, j] + a * prev
             u[r, j] = prev * sd
-
-
-_AR1 = []
-
-
-def _ar1():
-    """:func:`_ar1_rows`, compiled with Numba once per process (plain Python without it)."""
-    if not _AR1:
-        from ..batch import kernel
-
-        if kernel.AVAILABLE:
-            from numba import njit
-
-            _AR1.append(njit(nogil=True, cache=True)(_ar1_rows))
-        else:
-            _AR1.append(_vectorised_ar1)
-    return _AR1[0]
 
 
 def _vectorised_ar1(u, a, c, sd):

@@ -12,7 +12,7 @@ import warnings
 
 import numpy as np
 
-from ..batch import engine
+from ..batch import engine, kernel
 
 
 #: Lag over which headings and speeds are measured: long enough that tracking noise (mm)
@@ -77,7 +77,7 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, wander_lags_s=None, s
     out = np.empty((R, 5))
     xr = np.ascontiguousarray(x.reshape(-1, x.shape[-1]))
     yr = np.ascontiguousarray(y.reshape(-1, y.shape[-1]))
-    tracks = _compiled_tracks()
+    tracks = kernel.compiled(_motion_tracks)
 
     def rows(r0, r1):
         tracks(xr[r0:r1], yr[r0:r1], L, w1, w2, s1, s2, float(dt_s), out[r0:r1])
@@ -220,23 +220,6 @@ def _motion_tracks(x, y, L, w1, w2, s1, s2, dt, out):  # pragma: no cover - comp
         out[r, 2] = (wander[1] - wander[0]) / (2.0 / 3.0 * v * v * dt**3 * (w2**3 - w1**3)) if v > 0.0 else np.nan
         out[r, 3] = math.atan2(s_sum, c_sum)
         out[r, 4] = (var[1] - var[0]) / ((s2 - s1) * dt)
-
-
-_TRACKS = []
-
-
-def _compiled_tracks():
-    """:func:`_motion_tracks`, compiled with Numba once per process (plain Python without it)."""
-    if not _TRACKS:
-        from ..batch import kernel
-
-        if kernel.AVAILABLE:
-            from numba import njit
-
-            _TRACKS.append(njit(nogil=True, cache=True)(_motion_tracks))
-        else:
-            _TRACKS.append(_motion_tracks)
-    return _TRACKS[0]
 
 
 def _second_difference(a):
