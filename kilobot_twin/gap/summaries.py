@@ -42,7 +42,8 @@ def motion(x, y, dt_s: float, lag_s: float = MOTION_LAG_S, wander_lags_s=None, s
     Headings are those of displacements over ``lag_s`` (long against tracking noise). They
     are unwrapped across tracking gaps by differencing consecutive *observed* headings, and
     ``turn_rate`` is the least-squares slope of the unwrapped heading against time (rad/s,
-    counter-clockwise positive). ``speed`` is the mean lagged displacement over the lag (m/s).
+    counter-clockwise positive), NaN where the heading slipped by a whole turn (:data:`SLIP_RAD`).
+    ``speed`` is the mean lagged displacement over the lag (m/s).
     ``diffusion`` (rad^2/s) measures the heading noise by the track's sideways wander
     (:func:`wander_lags`): the second difference of position over s seconds,
     ``p(t + s) - 2 p(t) + p(t - s)``, across the chord ``p(t + s) - p(t - s)``, centred on the
