@@ -196,7 +196,7 @@ def motion(rng, shape, nz, hidden, effect_scale, program, track_rng=None):
         py = y[r, j] + c * np.sin(a0 + 0.5 * wj * tau)
         px = px + nz["tracking_noise_m"] * rng.standard_normal(px.shape)
         py = py + nz["tracking_noise_m"] * rng.standard_normal(py.shape)
-        if nz.get("tracking_correlated_m", 0.0) > 0:  # from its own stream: the rest draws as before
+        if nz["tracking_correlated_m"] > 0:  # from its own stream: the rest draws as before
             e = _ou_at(track_rng, np.broadcast_to(tf, (2,) + tf.shape), nz["tracking_correlated_m"], nz["tracking_tau_s"])
             px, py = px + e[0], py + e[1]
         g = rng.random(px.shape) < nz["glitch_p"]

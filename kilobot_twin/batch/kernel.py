@@ -374,23 +374,23 @@ def _compiled(name: str):
     return _COMPILED[name]
 
 
-_PLAIN: dict = {}
+_PASSES: dict = {}
 
 
 def compiled(fn, fallback=None):
     """``fn`` (a loop over arrays) compiled with Numba, without the GIL and cached on disk, once per
     process on first use; where Numba is not (:data:`AVAILABLE`), ``fallback`` or ``fn`` itself in
     plain Python. For the gap workflow's per-track passes, which share none of the kernel's loops."""
-    if fn not in _PLAIN:
+    if fn not in _PASSES:
         with _LOCK:
-            if fn not in _PLAIN:
+            if fn not in _PASSES:
                 if AVAILABLE:
                     from numba import njit
 
-                    _PLAIN[fn] = njit(nogil=True, cache=True)(fn)
+                    _PASSES[fn] = njit(nogil=True, cache=True)(fn)
                 else:
-                    _PLAIN[fn] = fallback or fn
-    return _PLAIN[fn]
+                    _PASSES[fn] = fallback or fn
+    return _PASSES[fn]
 
 
 def advance(*args) -> None:

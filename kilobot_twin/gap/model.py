@@ -81,7 +81,7 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         # Whether the tracker's errors persist from frame to frame (at the recorded frame rate):
         # the simulations then reproduce them, since they bend a track over seconds as the heading
         # noise does and would otherwise be read as it.
-        corr = summaries.tracking_noise_correlation(x, y, ds.dt_s)
+        corr = summaries.tracking_noise_correlation(x, y, ds.dt_s, noise_m=noise)
         x, y = summaries.mask_before_onset(x, y, noise)
         x, y = x[..., ::q], y[..., ::q]
         observed = np.isfinite(x)

@@ -223,13 +223,6 @@ def _motion_tracks(x, y, L, w1, w2, s1, s2, dt, out):  # pragma: no cover - comp
         out[r, 4] = (var[1] - var[0]) / ((s2 - s1) * dt)
 
 
-def _second_difference(a):
-    """a[j] - (a[j-1] + a[j+1]) / 2 where all three samples are observed, else NaN; (..., T)."""
-    d = np.full(a.shape, np.nan)
-    d[..., 1:-1] = a[..., 1:-1] - 0.5 * (a[..., :-2] + a[..., 2:])
-    return d
-
-
 def robust_sd(x, axis=None):
     """1.4826 x the median absolute deviation from the median, NaNs left out: the sd of a normal
     sample that a share of gross errors (glitches, slipped headings) does not move."""
@@ -247,19 +240,21 @@ def tracking_noise(x, y) -> float:
     variance 1.5 sd^2 per coordinate. Median absolute deviation (x 1.4826), so that glitches
     (heavy-tailed, centimetres) do not count.
     """
-    d = np.concatenate([_second_difference(x).ravel(), _second_difference(y).ravel()])
+    d = np.concatenate([_span_difference(x, 1, centred=False).ravel(), _span_difference(y, 1, centred=False).ravel()])
     d = d[np.isfinite(d)]
     if d.size < 10:
         return 0.0
     return float(robust_sd(d) / np.sqrt(1.5))
 
 
-def _span_difference(a, m: int):
-    """a[j] - (a[j-m] + a[j+m]) / 2 where all three samples are observed, less the track's median
-    of it (a steady turn bends every span alike), else NaN; (..., T)."""
+def _span_difference(a, m: int, centred: bool = True):
+    """a[j] - (a[j-m] + a[j+m]) / 2 where all three samples are observed, else NaN; (..., T).
+    ``centred``: less the track's median of it (a steady turn bends every span alike)."""
     d = np.full(a.shape, np.nan)
     if a.shape[-1] > 2 * m:
         d[..., m:-m] = a[..., m:-m] - 0.5 * (a[..., :-2 * m] + a[..., 2 * m:])
+    if not centred:
+        return d
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # tracks with no observed span
         return d - np.nanmedian(d, axis=-1, keepdims=True)
@@ -275,7 +270,8 @@ def _span_difference(a, m: int):
 CORRELATED_TRACKING_MIN = {"share": 0.2, "sd_m": 0.0005, "rho": 0.1}
 
 
-def tracking_noise_correlation(x, y, dt_s: float, max_span_s: float = 2.0, max_tau_s: float = 1.0) -> dict:
+def tracking_noise_correlation(x, y, dt_s: float, max_span_s: float = 2.0, max_tau_s: float = 1.0,
+                               noise_m: float | None = None) -> dict:
     """The tracker's position noise when its errors persist from frame to frame (a tracker that
     smooths, a blob that changes shape slowly): independent noise of sd ``white_m`` plus noise of
     sd ``correlated_m`` whose frames correlate as rho^m at m frames (Ornstein-Uhlenbeck sampled
@@ -296,11 +292,11 @@ def tracking_noise_correlation(x, y, dt_s: float, max_span_s: float = 2.0, max_t
     evaluation datasets with independent frames, nor 32 with heading noise correlated over 5 s, is
     read as correlated at either setting. Frames count as
     independent unless the correlated part is as large and as persistent as
-    :data:`CORRELATED_TRACKING_MIN` asks."""
+    :data:`CORRELATED_TRACKING_MIN` asks. ``noise_m``: :func:`tracking_noise` of these tracks,
+    where the caller has it already."""
     from scipy.optimize import nnls
 
-    local = tracking_noise(x, y)
-    white = {"white_m": local, "correlated_m": 0.0, "tau_s": 0.0}
+    white = {"white_m": tracking_noise(x, y) if noise_m is None else float(noise_m), "correlated_m": 0.0, "tau_s": 0.0}
     spans = np.unique(np.round(np.geomspace(1, max(max_span_s / dt_s, 6.0), 10)).astype(int))
     v = []
     for m in spans:
