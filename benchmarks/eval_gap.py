@@ -17,6 +17,7 @@ nuisance and the dataset's shape randomised per seed). Figures, each against its
     python benchmarks/eval_gap.py --generator indep --seeds 20 --out out/eval_gap/indep
     python benchmarks/eval_gap.py --generator synth --random-nuisance --seeds 20 --out out/eval_gap/synth
     python benchmarks/eval_gap.py --generator indep --at-mde --seeds 20 --out out/eval_gap/indep_mde
+    python benchmarks/eval_gap.py --generator synth --random-nuisance --at-mde --seeds 20 --out out/eval_gap/synth_mde
     python benchmarks/eval_gap.py --summarise --out out/eval_gap/indep      # figures of a finished run
 
 ``--scheduler local:N`` or ``tcp://HOST:PORT`` runs the datasets on a Dask cluster instead of the
@@ -93,8 +94,6 @@ def _write(job: dict, ds: Path, effect_scale: float) -> dict:
                                  nuisance=job.get("nuisance_override"))
     from kilobot_twin.gap.synth import synth
 
-    if effect_scale != 1.0:
-        raise ValueError("--at-mde and --effect-scale need --generator indep")
     if job["random_nuisance"]:
         from kilobot_twin.gap.observe import Observation
 
@@ -113,8 +112,8 @@ def _write(job: dict, ds: Path, effect_scale: float) -> dict:
         corr = 0.0015 * float(np.exp(rng.uniform(np.log(0.25), np.log(4.0)))) * (rng.random() >= 0.15)
         corr_tau = 0.2 * float(np.exp(rng.uniform(np.log(0.25), np.log(4.0))))
         obs = Observation(tracking_noise_m=0.002 * f.pop("tracking"), tracking_correlated_m=corr, tracking_tau_s=corr_tau)
-        return synth(kind, hidden, ds, seed=seed, obs=obs, nuisance=f, heading_noise_tau_s=tau)
-    return synth(kind, hidden, ds, seed=seed)
+        return synth(kind, hidden, ds, seed=seed, obs=obs, nuisance=f, heading_noise_tau_s=tau, effect_scale=effect_scale)
+    return synth(kind, hidden, ds, seed=seed, effect_scale=effect_scale)
 
 
 def _gap(ds: Path, out: Path, seed: int):
@@ -415,14 +414,14 @@ def main(argv=None):
                     help="synth: the twin itself; indep: benchmarks/indep_world.py (another code base)")
     ap.add_argument("--nuisance-scale", type=float, default=None,
                     help="indep: every nuisance at X x nominal (default: randomised per dataset)")
-    ap.add_argument("--effect-scale", type=float, default=1.0, help="indep: effect sizes x this")
+    ap.add_argument("--effect-scale", type=float, default=1.0, help="effect sizes x this")
     ap.add_argument("--fixed-shape", action="store_true", help="indep: 12 robots x 4 trials at 10 Hz")
     ap.add_argument("--random-program", action="store_true",
                     help="indep: draw each dataset's commanded speed and LED program (the twin's own otherwise)")
     ap.add_argument("--random-nuisance", action="store_true", help="synth: randomise the twin's nuisance levels")
     ap.add_argument("--heading-noise-tau", type=float, default=None,
                     help="indep: force the turn-rate noise's correlation time (s; drawn per dataset otherwise)")
-    ap.add_argument("--at-mde", action="store_true", help="single effects set to the MDE stated without them (indep)")
+    ap.add_argument("--at-mde", action="store_true", help="single effects set to the MDE stated without them")
     ap.add_argument("--summarise", action="store_true", help="only print the figures of OUT/results.json")
     a = ap.parse_args(argv)
     out = Path(a.out)
@@ -436,8 +435,8 @@ def main(argv=None):
     if a.heading_noise_tau is not None and (a.generator != "indep" or a.heading_noise_tau < 0):
         print("error: --heading-noise-tau: needs --generator indep and a correlation time >= 0 s", file=sys.stderr)
         return 2
-    if a.at_mde and a.generator != "indep":
-        print("error: --at-mde: needs --generator indep (its effect sizes scale)", file=sys.stderr)
+    if not (np.isfinite(a.effect_scale) and a.effect_scale > 0):
+        print(f"error: --effect-scale: must be a number above 0, got {a.effect_scale}", file=sys.stderr)
         return 2
     cases = CASES
     if a.at_mde:

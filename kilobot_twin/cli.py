@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from datetime import datetime, timezone
 from pathlib import Path
@@ -85,12 +86,13 @@ def reproduce(out: str = "out/reproduce", preset: str = "paper", quick: bool = F
 
 
 def synth(kind: str, hidden: str, out: str, robots: int | None = None, trials: int | None = None, seed: int = 0,
-          heading_noise_tau_s: float = 0.0) -> dict:
+          heading_noise_tau_s: float = 0.0, effect_scale: float = 1.0) -> dict:
     """Write a measured-v1 dataset from the twin with the named effects hidden in it (+ truth.json)."""
     from .gap.synth import synth as _synth
 
     check_out_dir(out, new=True)
-    return _synth(kind, hidden, out, robots, trials, seed, heading_noise_tau_s=heading_noise_tau_s)
+    return _synth(kind, hidden, out, robots, trials, seed, heading_noise_tau_s=heading_noise_tau_s,
+                  effect_scale=effect_scale)
 
 
 def gap(data: list[str], out: str, model: str | None = None, seed: int = 0, quiet: bool = False) -> dict:
@@ -240,6 +242,8 @@ def _parser() -> argparse.ArgumentParser:
     sy.add_argument("--seed", type=int, default=0)
     sy.add_argument("--heading-noise-tau", type=_correlation_time, default=0.0, metavar="S",
                     help="motion: correlation time of every robot's turn-rate noise, s (default 0: white)")
+    sy.add_argument("--effect-scale", type=_positive_float, default=1.0, metavar="F",
+                    help="the hidden effects' spread over the robots x F (default 1: synth.py's HIDDEN sizes)")
     sy.add_argument("--out", required=True)
 
     g = sub.add_parser("gap", help="twin vs measurement: find the disagreement, name the effect, show the gap shrink")
@@ -327,6 +331,16 @@ def _correlation_time(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{exc.problem}; {exc.fix}") from None
 
 
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number above 0, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a number above 0, got {v}")
+    return v
+
+
 def _positive_int(text: str) -> int:
     try:
         v = int(text)
@@ -402,7 +416,8 @@ def _main(argv=None, caught=()) -> int:
                             args.scheduler)
             print(f"{doc['met']} of {doc['total']} checks met in {doc['elapsed_s']:.0f} s; report: {args.out}/report.md")
         elif args.verb == "synth":
-            truth = synth(args.kind, args.hidden, args.out, args.robots, args.trials, args.seed, args.heading_noise_tau)
+            truth = synth(args.kind, args.hidden, args.out, args.robots, args.trials, args.seed, args.heading_noise_tau,
+                          args.effect_scale)
             print(f"wrote {args.out} ({truth['kind']}, hidden: {', '.join(truth['hidden']) or 'none'})")
         elif args.verb == "gap":
             rep = gap(args.data, args.out, args.model, args.seed, args.quiet)

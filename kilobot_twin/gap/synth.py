@@ -61,14 +61,20 @@ def parse_hidden(text: str, kind: str) -> list[str]:
 
 def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | None = None, trials: int | None = None,
           seed: int = 0, duration_s: float | None = None, obs: Observation = Observation(),
-          nuisance: dict | None = None, heading_noise_tau_s: float = 0.0) -> dict:
+          nuisance: dict | None = None, heading_noise_tau_s: float = 0.0, effect_scale: float = 1.0) -> dict:
     """Write a dataset to ``out`` and return its truth (also written to ``out/truth.json``).
 
     ``nuisance`` multiplies the nominal noise levels of the world (keys ``sigma_omega``,
     ``sigma_v``, ``sensor_noise``, ``clock_trial_sd``; tracking noise goes through ``obs``):
     the workflow fits them, so evaluations randomise them. ``heading_noise_tau_s`` gives every
     robot's turn-rate noise that correlation time (the trait ``heading_noise_tau``; 0: white).
+    ``effect_scale`` multiplies every hidden effect's spread over the robots (``HIDDEN``'s sds; the
+    sensor gains' and offsets' spread about their middle): power studies set an effect to a given
+    size. At 1 the robots are drawn exactly as without it.
     """
+    if not (np.isfinite(effect_scale) and effect_scale > 0):
+        raise ConfigError("--effect-scale", f"must be a number above 0, got {effect_scale!r}",
+                          "give the factor on the hidden effects' spread, e.g. 0.5 or 2")
     if kind not in DEFAULTS:
         raise ConfigError("--kind", f"unknown kind {kind!r}", f"use one of {', '.join(DEFAULTS)}")
     effects = parse_hidden(hidden, kind) if isinstance(hidden, str) else list(hidden)
@@ -78,7 +84,7 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     T = duration_s or d["duration_s"]
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(7,)))
     ids = np.arange(n)
-    traits, truth_extra = _hidden_traits(kind, effects, n, rng)
+    traits, truth_extra = _hidden_traits(kind, effects, n, rng, float(effect_scale))
     for k, f in (nuisance or {}).items():
         traits[k] = traits[k] * f
     if heading_noise_tau_s:
@@ -93,7 +99,8 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     meta.update({"robots": [int(i) for i in ids], "trials": K, "duration_s": T})
     out = Path(out)
     measured.write(out, meta, tracks)
-    truth = {"kind": kind, "hidden": effects, "seed": seed, "observation": asdict(obs), "nuisance": nuisance or {},
+    truth = {"kind": kind, "hidden": effects, "seed": seed, "effect_scale": float(effect_scale),
+             "observation": asdict(obs), "nuisance": nuisance or {},
              **truth_extra,
              "descriptions": {h: HIDDEN[h][1] for h in effects},
              "robots": {str(int(i)): {k: float(v[j]) for k, v in swarm.values.items()} for j, i in enumerate(ids)}}
@@ -101,7 +108,7 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     return truth
 
 
-def _hidden_traits(kind, effects, n, rng):
+def _hidden_traits(kind, effects, n, rng, s: float = 1.0):
     from ..core.traits import TRAIT_DEFAULTS
 
     tr = {k: np.full(n, v) for k, v in TRAIT_DEFAULTS.items()}
@@ -110,13 +117,13 @@ def _hidden_traits(kind, effects, n, rng):
         for k, v in NOMINAL_MOTION_NOISE.items():
             tr[k][:] = v
         if "heading_bias" in effects:
-            tr["heading_bias"] = rng.normal(0, TURN_RATE_SD_RAD_S * WHEEL_SEPARATION_M / FORWARD_SPEED_M_S, n)
+            tr["heading_bias"] = rng.normal(0, TURN_RATE_SD_RAD_S * WHEEL_SEPARATION_M / FORWARD_SPEED_M_S * s, n)
         if "speed_heterogeneity" in effects:
-            tr["speed_factor"] = np.clip(rng.normal(1.0, 0.08, n), 0.75, 1.25)
+            tr["speed_factor"] = np.clip(rng.normal(1.0, 0.08 * s, n), 0.75, 1.25)
         if "bias_drift" in effects:
-            tr["bias_drift"] = rng.normal(0, 0.01, n)
+            tr["bias_drift"] = rng.normal(0, 0.01 * s, n)
         if "motion_noise" in effects:
-            tr["sigma_omega"] = tr["sigma_omega"] * np.exp(rng.normal(0, 0.8, n))
+            tr["sigma_omega"] = tr["sigma_omega"] * np.exp(rng.normal(0, 0.8 * s, n))
         if "floor_tilt" in effects:
             extra["floor_tilt"] = {"amplitude": 0.15, "direction_rad": float(rng.uniform(-np.pi, np.pi))}
     elif kind == "light_sweep":
@@ -124,12 +131,14 @@ def _hidden_traits(kind, effects, n, rng):
             tr[k][:] = v
         if "sensor_gain" in effects:
             tr["sensor_gain"] = rng.uniform(1.5, 3.0, n)
-            tr["sensor_offset"] = rng.normal(5.0, 6.0, n)
+            tr["sensor_offset"] = rng.normal(5.0, 6.0 * s, n)
+            if s != 1.0:  # the same draws at 1 (2.25 + (g - 2.25) would round)
+                tr["sensor_gain"] = np.maximum(2.25 + (tr["sensor_gain"] - 2.25) * s, 0.1)  # gains > 0
     else:
         # Real clocks also wander between repetitions (paper Fig. 9b: counts differ by 1-3).
         tr["clock_trial_sd"][:] = NOMINAL_CLOCK_TRIAL_SD
         if "clock_drift" in effects:
-            tr["clock_rate"] = rng.normal(1.0, 0.015, n)
+            tr["clock_rate"] = rng.normal(1.0, 0.015 * s, n)
     return tr, extra
 
 

@@ -64,6 +64,8 @@ CASES = [
     (["synth", "--kind", "dance", "--out", "new_data"], "--kind"),
     (["synth", "--kind", "motion", "--heading-noise-tau", "-1", "--out", "new_data"], "--heading-noise-tau"),
     (["synth", "--kind", "motion", "--heading-noise-tau", "2s", "--out", "new_data"], "--heading-noise-tau"),
+    (["synth", "--kind", "motion", "--effect-scale", "0", "--out", "new_data"], "--effect-scale"),
+    (["synth", "--kind", "motion", "--effect-scale", "nan", "--out", "new_data"], "--effect-scale"),
     (["gap", "data", "--out", "afile.txt"], "--out"),
     (["gap", "data", "--out", "data"], "--out"),
     (["gap", "missing_data", "--out", "gap_out"], "missing_data"),

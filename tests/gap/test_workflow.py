@@ -350,6 +350,34 @@ def test_synth_gives_its_robots_coloured_heading_noise(tmp_path):
     assert (tmp_path / "w" / "observations.csv").read_text() != (tmp_path / "c" / "observations.csv").read_text()
 
 
+@pytest.mark.parametrize("kind, hidden, traits", [
+    ("motion", "heading_bias,speed_heterogeneity,bias_drift,motion_noise",
+     {"heading_bias": 0.0, "speed_factor": 1.0, "bias_drift": 0.0, "sigma_omega": None}),
+    ("light_sweep", "sensor_gain", {"sensor_gain": 2.25, "sensor_offset": 5.0}),
+    ("blink", "clock_drift", {"clock_rate": 1.0}),
+])
+def test_synths_effect_scale_multiplies_each_effects_spread(tmp_path, kind, hidden, traits):
+    """``effect_scale=s`` draws the same robots with every hidden effect's deviation from its
+    centre (``HIDDEN``: the normals' means, the gains' middle; sigma_omega on a log scale about the
+    nominal) x s, and leaves the other traits as they were; at 1 it writes what no scale writes."""
+    kw = dict(robots=8, trials=2, seed=5, duration_s=10.0)
+    one = synth(kind, hidden, tmp_path / "one", **kw)
+    default = synth(kind, hidden, tmp_path / "default", effect_scale=1.0, **kw)
+    assert (tmp_path / "one" / "observations.csv").read_bytes() == (tmp_path / "default" / "observations.csv").read_bytes()
+    half = synth(kind, hidden, tmp_path / "half", effect_scale=0.5, **kw)
+    assert half["effect_scale"] == 0.5 and one["effect_scale"] == 1.0
+    nominal = 0.01  # synth's nominal sigma_omega
+    for i, r1 in one["robots"].items():
+        rh = half["robots"][i]
+        for k, centre in traits.items():
+            if k == "sigma_omega":
+                assert np.log(rh[k] / nominal) == pytest.approx(0.5 * np.log(r1[k] / nominal), abs=1e-12)
+            elif k != "speed_factor" or 0.75 < r1[k] < 1.25:  # unclipped
+                assert rh[k] - centre == pytest.approx(0.5 * (r1[k] - centre), abs=1e-12)
+        assert {k: v for k, v in rh.items() if k not in traits} == {k: v for k, v in r1.items() if k not in traits}
+    assert (tmp_path / "one" / "observations.csv").read_bytes() != (tmp_path / "half" / "observations.csv").read_bytes()
+
+
 def test_synths_tracker_can_repeat_its_errors_from_frame_to_frame(tmp_path):
     """``Observation(tracking_correlated_m=, tracking_tau_s=)``: the same seed writes the same
     frames at the same times, and the positions differ by Ornstein-Uhlenbeck noise of that sd whose
