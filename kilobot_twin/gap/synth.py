@@ -69,8 +69,9 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     the workflow fits them, so evaluations randomise them. ``heading_noise_tau_s`` gives every
     robot's turn-rate noise that correlation time (the trait ``heading_noise_tau``; 0: white).
     ``effect_scale`` multiplies every hidden effect's spread over the robots (``HIDDEN``'s sds; the
-    sensor gains' and offsets' spread about their middle): power studies set an effect to a given
-    size. At 1 the robots are drawn exactly as without it.
+    sensor gains' and offsets' spread about their middle; not the tilted floor, which is no spread
+    over robots): power studies set an effect to a given size. At 1 the robots are drawn exactly as
+    without it.
     """
     if not (np.isfinite(effect_scale) and effect_scale > 0):
         raise ConfigError("--effect-scale", f"must be a number above 0, got {effect_scale!r}",
