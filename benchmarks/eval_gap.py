@@ -435,8 +435,13 @@ def main(argv=None):
     if a.heading_noise_tau is not None and (a.generator != "indep" or a.heading_noise_tau < 0):
         print("error: --heading-noise-tau: needs --generator indep and a correlation time >= 0 s", file=sys.stderr)
         return 2
-    if not (np.isfinite(a.effect_scale) and a.effect_scale > 0):
-        print(f"error: --effect-scale: must be a number above 0, got {a.effect_scale}", file=sys.stderr)
+    from kilobot_twin.errors import ConfigError
+    from kilobot_twin.gap.synth import check_effect_scale
+
+    try:
+        check_effect_scale(a.effect_scale)
+    except ConfigError as e:
+        print(f"error: {e}", file=sys.stderr)  # e names --effect-scale
         return 2
     cases = CASES
     if a.at_mde:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from datetime import datetime, timezone
 from pathlib import Path
@@ -242,7 +241,7 @@ def _parser() -> argparse.ArgumentParser:
     sy.add_argument("--seed", type=int, default=0)
     sy.add_argument("--heading-noise-tau", type=_correlation_time, default=0.0, metavar="S",
                     help="motion: correlation time of every robot's turn-rate noise, s (default 0: white)")
-    sy.add_argument("--effect-scale", type=_positive_float, default=1.0, metavar="F",
+    sy.add_argument("--effect-scale", type=_effect_scale, default=1.0, metavar="F",
                     help="the hidden effects' spread over the robots x F (default 1: synth.py's HIDDEN sizes)")
     sy.add_argument("--out", required=True)
 
@@ -331,14 +330,18 @@ def _correlation_time(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{exc.problem}; {exc.fix}") from None
 
 
-def _positive_float(text: str) -> float:
+def _effect_scale(text: str) -> float:
+    """A factor on the hidden effects' spread, checked as ``synth`` checks it."""
+    from .gap.synth import check_effect_scale
+
     try:
         v = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number above 0, got {text!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a number above 0, got {v}")
-    return v
+    try:
+        return check_effect_scale(v)
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(f"{exc.problem}; {exc.fix}") from None
 
 
 def _positive_int(text: str) -> int:

@@ -253,8 +253,11 @@ def _span_difference(a, m: int, centred: bool = True):
     d = np.full(a.shape, np.nan)
     if a.shape[-1] > 2 * m:
         d[..., m:-m] = a[..., m:-m] - 0.5 * (a[..., :-2 * m] + a[..., 2 * m:])
-    if not centred:
-        return d
+    return _less_track_median(d) if centred else d
+
+
+def _less_track_median(d):
+    """``d`` less each track's median of it (NaN for tracks with none observed); (..., T)."""
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # tracks with no observed span
         return d - np.nanmedian(d, axis=-1, keepdims=True)
@@ -271,12 +274,10 @@ def _chord_parts(x, y, m: int):
     if x.shape[-1] > 2 * m:
         cx[..., m:-m] = x[..., 2 * m:] - x[..., :-2 * m]
         cy[..., m:-m] = y[..., 2 * m:] - y[..., :-2 * m]
-    with np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # zero chords, tracks with no observed span
+    with np.errstate(all="ignore"):  # zero chords
         length = np.hypot(cx, cy)
         ux, uy = cx / length, cy / length
-        parts = dx * ux + dy * uy, dy * ux - dx * uy
-        return tuple(d - np.nanmedian(d, axis=-1, keepdims=True) for d in parts)
+    return _less_track_median(dx * ux + dy * uy), _less_track_median(dy * ux - dx * uy)
 
 
 #: What the tracking noise must show to count as correlated from frame to frame

@@ -59,6 +59,15 @@ def parse_hidden(text: str, kind: str) -> list[str]:
     return names
 
 
+def check_effect_scale(value) -> float:
+    """``effect_scale`` as a float, or a :class:`ConfigError`: a number above 0."""
+    v = float(value)
+    if not (np.isfinite(v) and v > 0):
+        raise ConfigError("--effect-scale", f"must be a number above 0, got {value!r}",
+                          "give the factor on the hidden effects' spread, e.g. 0.5 or 2")
+    return v
+
+
 def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | None = None, trials: int | None = None,
           seed: int = 0, duration_s: float | None = None, obs: Observation = Observation(),
           nuisance: dict | None = None, heading_noise_tau_s: float = 0.0, effect_scale: float = 1.0) -> dict:
@@ -73,9 +82,7 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     over robots): power studies set an effect to a given size. At 1 the robots are drawn exactly as
     without it.
     """
-    if not (np.isfinite(effect_scale) and effect_scale > 0):
-        raise ConfigError("--effect-scale", f"must be a number above 0, got {effect_scale!r}",
-                          "give the factor on the hidden effects' spread, e.g. 0.5 or 2")
+    effect_scale = check_effect_scale(effect_scale)
     if kind not in DEFAULTS:
         raise ConfigError("--kind", f"unknown kind {kind!r}", f"use one of {', '.join(DEFAULTS)}")
     effects = parse_hidden(hidden, kind) if isinstance(hidden, str) else list(hidden)
@@ -85,7 +92,7 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     T = duration_s or d["duration_s"]
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(7,)))
     ids = np.arange(n)
-    traits, truth_extra = _hidden_traits(kind, effects, n, rng, float(effect_scale))
+    traits, truth_extra = _hidden_traits(kind, effects, n, rng, effect_scale)
     for k, f in (nuisance or {}).items():
         traits[k] = traits[k] * f
     if heading_noise_tau_s:
@@ -100,7 +107,7 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     meta.update({"robots": [int(i) for i in ids], "trials": K, "duration_s": T})
     out = Path(out)
     measured.write(out, meta, tracks)
-    truth = {"kind": kind, "hidden": effects, "seed": seed, "effect_scale": float(effect_scale),
+    truth = {"kind": kind, "hidden": effects, "seed": seed, "effect_scale": effect_scale,
              "observation": asdict(obs), "nuisance": nuisance or {},
              **truth_extra,
              "descriptions": {h: HIDDEN[h][1] for h in effects},
