@@ -316,32 +316,32 @@ def _scheduler(text: str) -> str:
     return text
 
 
+def _checked_float(text: str, check, expected: str) -> float:
+    """``text`` as a float passed through the library's ``check`` (which raises ConfigError), as
+    an argparse type: bad input is one line naming the argument."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+    try:
+        return check(v)
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(f"{exc.problem}; {exc.fix}") from None
+
+
 def _correlation_time(text: str) -> float:
     """A turn-rate noise correlation time, checked as the trait ``heading_noise_tau`` is."""
     from .core.traits import traits_from_mapping
 
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a time in seconds, got {text!r}") from None
-    try:
-        return traits_from_mapping({"heading_noise_tau": v}).heading_noise_tau
-    except ConfigError as exc:
-        raise argparse.ArgumentTypeError(f"{exc.problem}; {exc.fix}") from None
+    return _checked_float(text, lambda v: traits_from_mapping({"heading_noise_tau": v}).heading_noise_tau,
+                          "a time in seconds")
 
 
 def _effect_scale(text: str) -> float:
     """A factor on the hidden effects' spread, checked as ``synth`` checks it."""
     from .gap.synth import check_effect_scale
 
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number above 0, got {text!r}") from None
-    try:
-        return check_effect_scale(v)
-    except ConfigError as exc:
-        raise argparse.ArgumentTypeError(f"{exc.problem}; {exc.fix}") from None
+    return _checked_float(text, check_effect_scale, "a number above 0")
 
 
 def _positive_int(text: str) -> int:
