@@ -288,7 +288,11 @@ class _Fitter:
             def resim(m, _j=j):
                 return simulate(self.cond, m, M, child_seed(self.gs.seed, "effect_resim", depth, _j), trials)
 
-            model = self.gs.library[name].fit(model, meas, ref, resim)
+            effect = self.gs.library[name]
+            if effect.refits_noise and key[1] != all_trials:
+                model = effect.fit(model, meas, ref, resim, noise=self.fit(names[: j + 1], all_trials))
+            else:
+                model = effect.fit(model, meas, ref, resim)
             model.named = list(names[: j + 1])
         self.cache[key] = model
         return model
@@ -317,6 +321,8 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
     # (whose noise levels every fold uses) is fitted first, once. Seeds are per fold: the result
     # does not depend on the number of threads.
     fitter.fit((), tuple(range(K)))
+    if any(fitter.gs.library[n].refits_noise for n in names):  # and so is the effects' (Effect.refits_noise)
+        fitter.fit(names, tuple(range(K)))
     with ThreadPoolExecutor(max(1, fitter.gs.threads)) as pool:
         folds = list(pool.map(fold, range(K)))
     for k, (model, sims) in enumerate(folds):
