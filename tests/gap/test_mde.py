@@ -87,7 +87,7 @@ def test_naming_power_against_a_loop_through_the_naming_rule(base_absorbs, noise
     Also: no effect, (almost) never named; a large one, always."""
     from kilobot_twin.gap.workflow import _f_between, naming_power
 
-    K, N, s_w2, thr, tau, R, seed = 4, 12, 1.0, 0.5, 1.0, 200, 4
+    K, N, s_w2, thr, tau, R, seed = 4, 12, 1.0, 0.5, 0.8, 200, 4
     seen = np.ones((K, N), bool)
     seen[2, 5] = False
     if noise is not None:
@@ -102,6 +102,8 @@ def test_naming_power_against_a_loop_through_the_naming_rule(base_absorbs, noise
     eps = rng.normal(0.0, np.sqrt(s_w2), (R, K, N))
     eps[:, ~seen] = np.nan
     effect = rng.standard_normal((R, 1, N))
+    for r in range(R):  # each dataset's robots spread by exactly the size (sd over robots, ddof 1)
+        effect[r] /= np.std(effect[r], ddof=1)
     if noise is not None:  # the noise's share of a track's summary: gamma, mean 1, variance f s_w2 / level^2
         shape = noise[0] ** 2 / (noise[1] * s_w2)
         g = rng.gamma(shape, 1 / shape, (R, K, N))
@@ -222,6 +224,8 @@ def test_drift_naming_power_against_a_loop_through_the_naming_rule():
     eps = rng.normal(0.0, np.sqrt(s_w2), (R, K, N))
     eps[:, ~seen] = np.nan
     effect = rng.standard_normal((R, N))
+    for r in range(R):  # each dataset's robots' slopes spread by exactly the size (ddof 1)
+        effect[r] /= np.std(effect[r], ddof=1)
     null_mean = float(np.nanmean(_f_trend(eps)))
     lib = {k: E.LIBRARY[k] for k in ("bias_drift", "heading_bias")}
     named, edge = [], 0
