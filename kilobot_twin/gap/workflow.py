@@ -72,7 +72,8 @@ class GapSettings:
     library: dict = field(default_factory=lambda: dict(E.LIBRARY))
 
 
-_PURPOSE = {"base_ref": 1, "base_probe": 2, "effect_ref": 3, "effect_resim": 4, "heldout": 5, "null": 6, "bootstrap": 7, "power": 8}
+_PURPOSE = {"base_ref": 1, "base_probe": 2, "effect_ref": 3, "effect_resim": 4, "heldout": 5, "null": 6, "bootstrap": 7, "power": 8,
+            "sensitivity": 9}
 
 
 def child_seed(root: int, purpose: str, *keys: int) -> int:
@@ -693,7 +694,8 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         found = detect(kind, meas, null, cond.trials, gs.alpha)
         if round_ == 0:
             mde = minimum_detectable(kind, meas, null, cond.trials, gs.alpha, seed=child_seed(gs.seed, "power"), base=model,
-                                     gain_level=gs.gain_level)
+                                     gain_level=gs.gain_level,
+                                     sensitivity=summary_sensitivity(cond, model, child_seed(gs.seed, "sensitivity")))
         flagged = [f for f in found if f["flagged"]]
         for f in flagged:
             disagreements.append({"round": round_, "signal": f["signal"], "robots": [int(cond.robot_ids[i]) for i in f["robots"]],
@@ -838,14 +840,66 @@ _MAX_LOG_SD = 2.0
 #: all of the spread beyond measurement is per trial), so that the base predicts them wider.
 _BASE_ABSORBS = {"heading_bias", "bias_drift", "clock_drift"}
 
+#: Per kind, the trait each summary's size moves (a turn rate in rad/s through the heading bias,
+#: or a factor on the trait) and the step of the probe (:func:`summary_sensitivity`).
+_PROBE_TRAIT = {"motion": {"turn_rate": ("heading_bias", 0.002), "speed": ("speed_factor", 0.01)},
+                "light_sweep": {"gain": ("sensor_gain", 0.01)}, "blink": {"toggle_rate": ("clock_rate", 0.01)}}
+
+
+def summary_sensitivity(cond: Conditions, model: E.TwinModel, seed: int, M: int = 8) -> dict:
+    """How far each summary that a minimum detectable size is read in moves per unit of that size,
+    under this dataset's conditions (its frame rate, gaps, tracking noise): summary -> slope, in
+    the summary's units per rad/s (turn rate) or as a share of its level per relative step of the
+    trait (speed, gain, toggle rate). 1 for a summary that follows its trait exactly.
+
+    It is not 1 in general: the speed summary is a mean distance over a lag, which tracking noise
+    lengthens the more the shorter it is, so it moves by 0.79 of a robot's relative speed
+    difference under 5 mm of tracking noise at 10 Hz (independent world, seed 3000; the robots'
+    measured means against their true speeds: 0.73), and speed sizes read through the summary's
+    level alone were named in 10 of 20 datasets set to them. Measured by simulation: the model, and the model with each robot's trait moved
+    by a small step times a standardised draw (each summary's own draw), on the same random
+    numbers; the slope of the robots' mean differences on their steps, both traits at once (a
+    robot's speed also moves its turn rate). A slope that is not positive (no robot tracked) is
+    taken for 1."""
+    probe = _PROBE_TRAIT.get(cond.kind, {})
+    N = len(model.swarm)
+    if N < 3 or not probe:
+        return {}
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,)))
+    z = rng.standard_normal((len(probe), N))
+    z = (z - z.mean(1, keepdims=True)) / z.std(1, ddof=1, keepdims=True)
+    moved = {}
+    for (comp, (trait, step)), zj in zip(probe.items(), z):
+        if trait == "heading_bias":  # a turn-rate step, in the twin's bias at each robot's speed
+            v = model.forward_speed_m_s * model.swarm.speed_factor
+            moved[trait] = model.swarm.heading_bias + heading_bias_from_turn_rate(step * zj, v)
+        else:
+            moved[trait] = getattr(model.swarm, trait) * (1.0 + step * zj)
+    s0 = simulate(cond, model, M, seed)
+    s1 = simulate(cond, model.with_traits(**moved), M, seed)
+    X = np.column_stack([step * zj for (_, step), zj in zip(probe.values(), z)] + [np.ones(N)])
+    out = {}
+    for j, comp in enumerate(probe):
+        with np.errstate(all="ignore"):
+            d = np.nanmean(s1[comp] - s0[comp], axis=(0, 1))
+            if comp != "turn_rate":
+                d = d / abs(float(np.nanmean(s0[comp])))
+        ok = np.isfinite(d)
+        slope = float(np.linalg.lstsq(X[ok], d[ok], rcond=None)[0][j]) if ok.sum() > X.shape[1] else float("nan")
+        out[comp] = slope if np.isfinite(slope) and slope > 0 else 1.0
+    return out
+
 
 def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: float, power: float = 0.8,
-                       seed: int = 0, base: E.TwinModel | None = None, gain_level: float = GAIN_LEVEL) -> dict:
+                       seed: int = 0, base: E.TwinModel | None = None, gain_level: float = GAIN_LEVEL,
+                       sensitivity: dict | None = None) -> dict:
     """The smallest between-robot spread of each effect that this dataset (its robots, trials,
     gaps, noise) would have named with ``power``: ``size``, and ``detection_size``, the smallest
     the detection step alone flags with ``power``. A spread is that of the dataset's own robots
     (their sd, ddof 1), not of a population they are drawn from: what a user's swarm has, and
-    what an evaluation sets.
+    what an evaluation sets. Sizes are found in the summary's units and read in the trait's
+    through ``sensitivity`` (:func:`summary_sensitivity`; without it the summary is taken to
+    follow its trait exactly), which each entry states as ``summary_per_size``.
 
     Detection: between robots that differ by sd tau, a robot's mean over its K trials varies by
     an extra tau^2, so the F ratio of between- to within-robot mean squares grows by the factor
@@ -927,13 +981,15 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0, seed=seed, noise=noise,
                           gain_level=gain_level)
         tau = _first_crossing(taus, pw, power)
+        per_size = 1.0 if noise is not None else float((sensitivity or {}).get(comp, 1.0))
+        scale /= per_size
         # None: not named with that power even at 16x the detection size (too few robots), or,
         # for noise intensities, at a spread of _MAX_LOG_SD.
         named = tau * scale if np.isfinite(tau) else None
-        out[effect] = {"size": named, "detection_size": tau_det * scale, "unit": unit}
+        out[effect] = {"size": named, "detection_size": tau_det * scale, "unit": unit, "summary_per_size": per_size}
         if effect == "heading_bias" and named is not None:  # also in the twin's units, b = -omega L / v
             v = float(np.nanmean(null["speed"]))
-            out[effect]["heading_bias_sd"] = float(abs(heading_bias_from_turn_rate(tau, v)))
+            out[effect]["heading_bias_sd"] = float(abs(heading_bias_from_turn_rate(named, v)))
     return out
 
 
