@@ -663,8 +663,9 @@ class ClockDrift(Effect):
 
     name, kind = "clock_drift", "blink"
     predicts = {"toggle_rate": "mean"}
+    refits_noise = True  # the clock jitter left once clocks differ (and the frame lead it goes with)
 
-    def fit(self, model, meas, ref, resim=None, iterations=2):
+    def fit(self, model, meas, ref, resim=None, iterations=2, noise: TwinModel | None = None):
         """Ratio of each robot's measured toggle rate to the simulated one; then, with ``resim``,
         fixed-point steps against each robot's own simulation: toggles are timed to frames, so
         the summarised rate is not quite proportional to the clock rate, and a single ratio to
@@ -672,11 +673,14 @@ class ClockDrift(Effect):
         (predictive spread of that order) turns into a large misfit."""
         rate, w = partial_pool(meas["toggle_rate"])
         c = model.swarm.clock_rate * rate / _nanmean(ref["toggle_rate"], axis=(0, 1))
-        spread = max(_spread_own(meas["toggle_rate"]) - _timing_var(_spread_own, ref, model, resim), 0.0)
         n = len(model.swarm)
-        m = model.with_traits(clock_rate=c, clock_trial_sd=np.full(n, np.sqrt(spread))).pooled("toggle_rate", w)
-        m = _own_fixed_point(m, "clock_rate", "toggle_rate", rate, resim, iterations)
-        if resim is not None and m.frame_lead == "random":
+        if noise is not None:  # a fold: the all-trials fit's jitter and lead (``refits_noise``)
+            m = model.with_traits(clock_rate=c, clock_trial_sd=noise.swarm.clock_trial_sd, frame_lead=noise.frame_lead)
+        else:
+            spread = max(_spread_own(meas["toggle_rate"]) - _timing_var(_spread_own, ref, model, resim), 0.0)
+            m = model.with_traits(clock_rate=c, clock_trial_sd=np.full(n, np.sqrt(spread)))
+        m = _own_fixed_point(m.pooled("toggle_rate", w), "clock_rate", "toggle_rate", rate, resim, iterations)
+        if resim is not None and m.frame_lead == "random" and noise is None:
             m = self._lead_with_own_clocks(m, meas, rate, resim, iterations)
         return m.with_individual({"clock_rate": w}, clock_rate=m.swarm.clock_rate * partial_pool(meas["toggle_rate"], keep_spread=True)[0] / rate)
 
