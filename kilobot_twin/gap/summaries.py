@@ -341,7 +341,7 @@ def tracking_noise_correlation(x, y, dt_s: float, max_span_s: float = 2.0, max_t
     spans = np.repeat(spans[: len(v)], 2)
     along = np.tile([1.0, 0.0], len(v))
     v = v.ravel()
-    s = spans * dt_s / (spans[-1] * dt_s)
+    s = spans / spans[-1]  # span lengths relative to the longest
     best = (np.inf, 0.0, 0.0, 0.0)
     for tau in np.geomspace(dt_s / 10, max_tau_s, 120):
         rho = np.exp(-dt_s / tau)

@@ -856,11 +856,12 @@ def summary_sensitivity(cond: Conditions, model: E.TwinModel, seed: int, M: int 
     lengthens the more the shorter it is, so it moves by 0.79 of a robot's relative speed
     difference under 5 mm of tracking noise at 10 Hz (independent world, seed 3000; the robots'
     measured means against their true speeds: 0.73), and speed sizes read through the summary's
-    level alone were named in 10 of 20 datasets set to them. Measured by simulation: the model, and the model with each robot's trait moved
-    by a small step times a standardised draw (each summary's own draw), on the same random
-    numbers; the slope of the robots' mean differences on their steps, both traits at once (a
-    robot's speed also moves its turn rate). A slope that is not positive (no robot tracked) is
-    taken for 1."""
+    level alone were named in 10 of 20 datasets set to them.
+
+    Measured by simulation: the model, and the model with each robot's trait moved by a small
+    step times a standardised draw (each summary's own draw), on the same random numbers; the
+    slope of the robots' mean differences on their steps, both traits at once (a robot's speed
+    also moves its turn rate). A slope that is not positive (no robot tracked) is taken for 1."""
     probe = _PROBE_TRAIT.get(cond.kind, {})
     N = len(model.swarm)
     if N < 3 or not probe:
@@ -871,8 +872,7 @@ def summary_sensitivity(cond: Conditions, model: E.TwinModel, seed: int, M: int 
     moved = {}
     for (comp, (trait, step)), zj in zip(probe.items(), z):
         if trait == "heading_bias":  # a turn-rate step, in the twin's bias at each robot's speed
-            v = model.forward_speed_m_s * model.swarm.speed_factor
-            moved[trait] = model.swarm.heading_bias + heading_bias_from_turn_rate(step * zj, v)
+            moved[trait] = model.swarm.heading_bias + E._bias((step * zj)[None, :], model)[0]
         else:
             moved[trait] = getattr(model.swarm, trait) * (1.0 + step * zj)
     s0 = simulate(cond, model, M, seed)
