@@ -988,8 +988,12 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             taus = tau_det * np.geomspace(0.7, 16.0, 20)
             taus = taus[taus <= _MAX_LOG_SD] if (taus <= _MAX_LOG_SD).any() else taus[:1]
             scale, unit = 1.0, _NOISE_UNIT
+        rival = None
+        if drift and f"{comp}:between_robots" in stats:  # the level effect a drift contains competes where flagged
+            fb = np.asarray(stats[f"{comp}:between_robots"][0], dtype=float)
+            rival = z_det * float(np.nanstd(fb[np.isfinite(fb)], ddof=1))
         pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0, seed=seed, noise=noise,
-                          gain_level=gain_level, dof=dof)
+                          gain_level=gain_level, dof=dof, rival_threshold=rival)
         tau = _first_crossing(taus, pw, power)
         per_size = 1.0 if noise is not None else float((sensitivity or {}).get(comp, 1.0))
         scale /= per_size
@@ -1017,7 +1021,7 @@ def _first_crossing(x, y, level):
 
 def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, threshold: float, reps: int = 200,
                  boot: int = 200, seed: int = 0, noise: tuple | None = None, gain_level: float = GAIN_LEVEL,
-                 dof: float | None = None) -> np.ndarray:
+                 dof: float | None = None, rival_threshold: float | None = None) -> np.ndarray:
     """Probability that a between-robot effect of spread ``tau`` (each of ``taus``) is flagged
     and named, by emulation in summary space: per replicate, each robot's trial summaries are
     its own level (sd tau over the replicate's robots, exactly; a drift: its own slope over
@@ -1027,7 +1031,10 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     log-likelihood gain of the effect's pooled per-robot estimates (:func:`effects.partial_pool`,
     with their predictive variance) over the base (a population level; its spread the
     within-robot one, or the whole spread where ``base_absorbs``) is above 0; a drift must also
-    beat a robot's mean, its rival, at 95 % (``RIVAL_LEVEL``).
+    beat a robot's mean, its rival, at 95 % (``RIVAL_LEVEL``), where the rival competes: with
+    ``rival_threshold`` (the between-robot statistic's flagging threshold, as ``threshold`` is the
+    trend's) only in datasets where the robots' means differ flaggably, as the workflow scores only
+    candidates that explain a flagged signal; without it, always.
     Common random numbers across ``taus``, so the curve is smooth in tau.
 
     ``noise = (level, f)``: robots that differ in a noise intensity (a variance, never negative),
@@ -1096,6 +1103,8 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     stat = _f_noise if noise is not None else _f_trend if drift else _f_between
     shift = noise[0] if noise is not None else 0.0
     null_mean = float(np.nanmean(stat(shift + emulated(0.0))))
+    if drift and rival_threshold is not None:
+        between_null = float(np.nanmean(_f_between(emulated(0.0))))
     out = []
     for tau in taus:
         x = emulated(tau)
@@ -1104,7 +1113,10 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
         lo = np.percentile(gain[:, idx].sum(-1), 100 * (1 - gain_level), axis=1)
         named = flagged & (lo > 0)
         if drift:
-            named &= np.percentile((gain - rival)[:, idx].sum(-1), 100 * (1 - RIVAL_LEVEL), axis=1) > 0
+            beats = np.percentile((gain - rival)[:, idx].sum(-1), 100 * (1 - RIVAL_LEVEL), axis=1) > 0
+            if rival_threshold is not None:  # the heading bias competes where robots' means differ
+                beats |= ~(_f_between(x) - between_null > rival_threshold)
+            named &= beats
         out.append(float(np.mean(named)))
     return np.array(out)
 

@@ -203,22 +203,29 @@ def _drift_gains_by_loop(x):
     return line, mean
 
 
-def test_drift_naming_power_against_a_loop_through_the_naming_rule():
+@pytest.mark.parametrize("rival_threshold", [None, -1.0, np.inf])
+def test_drift_naming_power_against_a_loop_through_the_naming_rule(rival_threshold):
     """naming_power for a drift against a second implementation: the emulated robots differ in
     slope only, each line through the robot's own mean over its trials (a drift is not a
     heading bias: lines through a common start would also spread the robots' levels, which the
     independent world's drifts do not, and the stated size was then named in 44 % of its
     datasets), scored robot by robot and fold by fold and named through decide() with the
     library's bias_drift and heading_bias (a drift must beat the mean per robot it contains).
+    With ``rival_threshold`` the heading bias is a candidate only where the robots' means differ
+    flaggably (the between-robot F above its null mean by that much), as the workflow scores only
+    candidates that explain a flagged signal; without it, always. (A drift widens the within-robot
+    spread, so the between-robot F of these datasets falls below its null mean, by 1.05 in the
+    median: the threshold -1 lets the rival compete in about half of them; at inf it never does,
+    and the rate is 0.16 above that of a rival that always competes, 0.62.)
     Same draws as naming_power; the bootstrap indices differ (decide draws its own), so the two
     rates agree within the bootstrap's own noise on the datasets near the rule's edge."""
-    from kilobot_twin.gap.workflow import _f_trend, decide, naming_power
+    from kilobot_twin.gap.workflow import _f_between, _f_trend, decide, naming_power
 
     K, N, s_w2, thr, R, seed = 5, 12, 1.0, 0.5, 200, 7
     seen = np.ones((K, N), bool)
     seen[0, 3] = seen[4, 8] = False
     taus = [0.0, 0.9, 5.0]
-    p = naming_power(seen, s_w2, taus, True, True, thr, reps=R, seed=seed)
+    p = naming_power(seen, s_w2, taus, True, True, thr, reps=R, seed=seed, rival_threshold=rival_threshold)
     assert p[0] <= 0.05 and p[2] == 1.0, p
     rng = np.random.default_rng(seed)
     eps = rng.normal(0.0, np.sqrt(s_w2), (R, K, N))
@@ -227,8 +234,9 @@ def test_drift_naming_power_against_a_loop_through_the_naming_rule():
     for r in range(R):  # each dataset's robots' slopes spread by exactly the size (ddof 1)
         effect[r] /= np.std(effect[r], ddof=1)
     null_mean = float(np.nanmean(_f_trend(eps)))
+    between_null = float(np.nanmean(_f_between(eps)))
     lib = {k: E.LIBRARY[k] for k in ("bias_drift", "heading_bias")}
-    named, edge = [], 0
+    named, edge, competed, flagged = [], 0, 0, 0
     for r in range(R):
         x = eps[r].copy()
         for i in range(N):
@@ -237,13 +245,20 @@ def test_drift_naming_power_against_a_loop_through_the_naming_rule():
         if not _f_trend(x) - null_mean > thr:
             named.append(False)
             continue
+        flagged += 1
         line, mean = _drift_gains_by_loop(x)
-        d = decide({"bias_drift": line, "heading_bias": mean}, lambda name: ["signal"], rng, 200, library=lib)
+        scores = {"bias_drift": line}
+        if rival_threshold is None or _f_between(x) - between_null > rival_threshold:
+            scores["heading_bias"] = mean
+            competed += 1
+        d = decide(scores, lambda name: ["signal"], rng, 200, library=lib)
         named.append(d["named"] and d["best"] == "bias_drift")
         # near the edge: an interval's lower end within a quarter of its width of 0
         for lo, hi in (d["ci_gain"], *([] if not d["simplified"] else [d["simplified"][0]["ci95"]])):
             edge += abs(lo) < 0.25 * (hi - lo)
     assert 0.2 < p[1] < 0.8, p  # mid-way: many datasets near the rule's edge
+    if rival_threshold is not None:  # the rival competed in some of the flagged datasets (-1), not in all
+        assert (0 < competed < flagged) if rival_threshold < 0 else competed == 0, (competed, flagged)
     # Each edge dataset may fall either way under another bootstrap: the rates differ by at most
     # 3 binomial sds of that many coin flips.
     tol = 3 * np.sqrt(max(edge, 1) * 0.25) / R
