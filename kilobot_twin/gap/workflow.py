@@ -928,6 +928,10 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
     from scipy.stats import norm
 
     stats = statistics(kind, null, trials)
+    sd0 = {}  # each statistic's spread under the simulated null
+    for name, (v, _) in stats.items():
+        v = np.asarray(v, dtype=float)
+        sd0[name] = float(np.nanstd(v[np.isfinite(v)], ddof=1))
     z_det = norm.isf(alpha / len(stats))
     z = z_det + norm.isf(1 - power)
     out = {}
@@ -936,8 +940,7 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         stat = f"{comp}:trial_trend" if drift else f"{comp}:between_robots"
         if stat not in stats:  # fewer than 3 trials: no trend statistic
             continue
-        f = np.asarray(stats[stat][0], dtype=float)
-        s0 = np.nanstd(f[np.isfinite(f)], ddof=1)
+        s0 = sd0[stat]
         x = meas[comp]  # (K, N)
         with np.errstate(all="ignore"):
             seen = np.isfinite(x)
@@ -963,9 +966,9 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             else:
                 k_eff = float(np.nanmean(seen.sum(0)))
                 dof = int((seen.sum(0) - 1).clip(0).sum())
-                s_w2 = E.within_var(x)
-                if s_w2 < (_resolution(meas, comp) or 0.0):  # the ADC's rounding, known: not estimated
-                    s_w2, dof = float(_resolution(meas, comp)), None
+                s_w2, floor = E.within_var(x), _resolution(meas, comp)
+                if floor is not None and s_w2 < floor:  # the ADC's rounding, known: not estimated
+                    s_w2, dof = float(floor), None
             if s_w2 < float(_rel_floor(x)):
                 s_w2, dof = float(_rel_floor(x)), None
             tau_det = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
@@ -988,10 +991,9 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             taus = tau_det * np.geomspace(0.7, 16.0, 20)
             taus = taus[taus <= _MAX_LOG_SD] if (taus <= _MAX_LOG_SD).any() else taus[:1]
             scale, unit = 1.0, _NOISE_UNIT
-        rival = None
-        if drift and f"{comp}:between_robots" in stats:  # the level effect a drift contains competes where flagged
-            fb = np.asarray(stats[f"{comp}:between_robots"][0], dtype=float)
-            rival = z_det * float(np.nanstd(fb[np.isfinite(fb)], ddof=1))
+        # The effects a drift contains (the heading bias) compete where a signal they explain is flagged.
+        contained = [n for n in stats if drift and any(E.LIBRARY[r].explains(n) for r in E.LIBRARY[effect].extends)]
+        rival = z_det * sd0[contained[0]] if contained else None
         pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0, seed=seed, noise=noise,
                           gain_level=gain_level, dof=dof, rival_threshold=rival)
         tau = _first_crossing(taus, pw, power)
@@ -1102,9 +1104,10 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     # population's level plus each robot's departure from it.
     stat = _f_noise if noise is not None else _f_trend if drift else _f_between
     shift = noise[0] if noise is not None else 0.0
-    null_mean = float(np.nanmean(stat(shift + emulated(0.0))))
+    x0 = emulated(0.0)
+    null_mean = float(np.nanmean(stat(shift + x0)))
     if drift and rival_threshold is not None:
-        between_null = float(np.nanmean(_f_between(emulated(0.0))))
+        between_null = float(np.nanmean(_f_between(x0)))
     out = []
     for tau in taus:
         x = emulated(tau)
