@@ -969,8 +969,9 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
                 s_w2, floor = E.within_var(x), _resolution(meas, comp)
                 if floor is not None and s_w2 < floor:  # the ADC's rounding, known: not estimated
                     s_w2, dof = float(floor), None
-            if s_w2 < float(_rel_floor(x)):
-                s_w2, dof = float(_rel_floor(x)), None
+            rel_floor = float(_rel_floor(x))
+            if s_w2 < rel_floor:
+                s_w2, dof = rel_floor, None
             tau_det = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
             level = float(np.nanmean(x))
         taus = tau_det * np.geomspace(0.7, 16.0, 20)
