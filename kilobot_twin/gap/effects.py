@@ -235,9 +235,9 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
     # Identical clocks; the spread of trial rates (Eq. 4's sigma for clocks) is fitted.
     c = model.swarm.clock_rate.mean() * np.nanmean(meas["toggle_rate"]) / np.nanmean(ref["toggle_rate"])
     m = model.with_traits(clock_rate=np.full(n, c))
-    if noise is not None:  # a fold: the all-trials fit's choice
-        m = m.with_traits(frame_lead=noise.frame_lead)
-    elif resim is not None:
+    if noise is not None:  # a fold: the all-trials fit's lead and jitter
+        return m.with_traits(frame_lead=noise.frame_lead, clock_trial_sd=noise.swarm.clock_trial_sd)
+    if resim is not None:
         m = m.with_traits(frame_lead=_frame_lead(m, meas, resim))
     # Identical clocks: all spread of the rates is per trial, less what timing to frames gives.
     # (Simulated with m's own frame lead, which the reference simulation need not have.)

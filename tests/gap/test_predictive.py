@@ -272,18 +272,19 @@ def test_a_fold_takes_the_noise_level_of_the_all_trials_fit(tmp_path, kind, effe
     named in 14 of 20 synth datasets. ``clock_drift`` likewise refits the clock jitter left once
     clocks differ (from each robot's 2-3 training trials: 0.0029-0.0061 against 0.0047 on all
     trials, independent world blink 3010), and its frame lead with it. Every fold of the effect
-    must carry its all-trials fit's level (and lead)."""
+    must carry its all-trials fit's level (and lead), as the base's do."""
     gs = GapSettings(seed=1, m_null=80, m_ref=12, m_score=20, boot=300)
     synth(kind, effect, tmp_path / "d", seed=3, nuisance={noise: 2.0})
     cond, meas = measured_summaries(measured.load(tmp_path / "d"))
     meas = E.Summaries(meas, np.arange(cond.trials))
     fitter = _Fitter(cond, meas, E.nominal_model(kind, cond.robot_ids), gs, True)
     everything = list(range(cond.trials))
-    level = fitter.fit((effect,), everything)
-    for k in everything:
-        fold = fitter.fit((effect,), [t for t in everything if t != k])
-        np.testing.assert_array_equal(getattr(fold.swarm, noise), getattr(level.swarm, noise))
-        assert fold.frame_lead == level.frame_lead
+    for names in ((), (effect,)):  # the base's folds, and the effect's
+        level = fitter.fit(names, everything)
+        for k in everything:
+            fold = fitter.fit(names, [t for t in everything if t != k])
+            np.testing.assert_array_equal(getattr(fold.swarm, noise), getattr(level.swarm, noise))
+            assert fold.frame_lead == level.frame_lead
     # The level the effect refits is its own (robots that differ in gain bend at the ceiling
     # apart; clocks that differ leave less jitter), not the base's.
     assert getattr(level.swarm, noise)[0] != getattr(fitter.fit((), everything).swarm, noise)[0]
