@@ -456,6 +456,13 @@ class Effect(abc.ABC):
     #: predictive spreads of the held-out trials with it, and the score pays for each fold whose
     #: spread came out narrow, by an amount that the bootstrap over robots does not see.
     refits_noise: bool = False
+    #: Summaries whose one-trial spread the effect's per-robot level sets (a noise intensity sets
+    #: both a robot's diffusion and how much it scatters from trial to trial). A held-out
+    #: prediction then errs in its spread as well as its mean: a robot whose level came out low is
+    #: predicted too narrow, and pays on held-out trials far more than one that came out high
+    #: gains. :func:`kilobot_twin.gap.workflow._heldout` widens the spread by the level's
+    #: estimation error carried through the spread (see :func:`spread_leverage`).
+    scales_spread: tuple = ()
 
     #: The kind of statistic (:func:`kilobot_twin.gap.workflow.statistics`) each way of predicting
     #: a summary can account for: robots that differ by a level, robots whose level moves over
@@ -602,6 +609,7 @@ class MotionNoise(Effect):
     name, kind = "motion_noise", "motion"
     predicts = {"diffusion": "mean"}
     gap_parts = ("track", "own")  # noisier robots scatter more: their own spread is the point
+    scales_spread = ("diffusion",)
 
     def fit(self, model, meas, ref, resim=None):
         n = len(model.swarm)
@@ -753,6 +761,24 @@ def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit
         return w / Kp, 1.0 / Kp
     w_d = model.slope_pooling.get(component, 1.0) if model is not None else 1.0
     return w / Kp + w_d * (k - t.mean()) ** 2 / sxx, 1.0 / Kp + (k - t.mean()) ** 2 / sxx
+
+
+def spread_leverage(h, b, cap: float = 0.9):
+    """The estimation part of the predictive variance of a summary whose spread grows with the
+    level a robot's parameters set (``Effect.scales_spread``), as a multiple of the one-trial
+    variance at the fitted level (:func:`leverage`'s ``h_track`` is that of the mean alone).
+
+    Within a robot, one trial's summary varies by ``var(L) = a + b L^2`` around its level L
+    (``b``: the share of the spread that scales with the level, see
+    :func:`kilobot_twin.gap.workflow.level_spread_slope`). The level is known to V = h var(L)
+    (h: the leverage of the robot's estimate), so the predictive variance is
+    E[var(L)] + V = var(L-hat) + (1 + b) V, the expectation over the level's uncertainty. V is
+    itself at the unknown level: taken at its expectation, V = h (var(L-hat) + b V), so
+    V = h var(L-hat) / (1 - h b) and the multiple is h (1 + b) / (1 - h b). With b = 0 it is h,
+    the mean's error alone. ``h b`` near 1 is a level known to no better than itself, where the
+    first-order expansion fails: it is capped at ``cap``."""
+    hb = np.minimum(np.asarray(h, dtype=float) * b, cap)
+    return np.asarray(h, dtype=float) * (1.0 + b) / (1.0 - hb)
 
 
 class Summaries(dict):

@@ -12,7 +12,8 @@
    distribution (leave-one-trial-out): Gaussian within 4 sd, with tails for gross errors
    (:func:`log_density`); its spread is the simulated spread of the fitted model plus the
    estimation error of the parameters fitted on the other trials (``effects.leverage``), per
-   robot; a bootstrap over robots gives intervals. The
+   robot, also through the spread where the fitted level sets it (``effects.spread_leverage``);
+   a bootstrap over robots gives intervals. The
    best is named only if its gain over the current model and over the runner-up both have a
    95 % interval above zero. Otherwise the disagreement is ``unexplained``.
 4. **Add** it: its per-robot parameters, fitted on all trials, go into the model.
@@ -303,7 +304,9 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
     """Leave-one-trial-out predictive distributions: per fold, the simulated mean of each summary
     and its predictive sd, for one robot's summary (``sd``) and for the mean over robots
     (``sd_level``, per robot: divide by sqrt(n)). Both are the simulated spread of a trial plus
-    the estimation error of the parameters fitted on the other trials (:func:`effects.leverage`)."""
+    the estimation error of the parameters fitted on the other trials (:func:`effects.leverage`;
+    for a summary whose spread a named effect's per-robot level sets, ``Effect.scales_spread``,
+    :func:`effects.spread_leverage` with the spread on :func:`level_spread`'s line)."""
     K = fitter.cond.trials
     N = len(fitter.cond.robot_ids)
     comps = COMPONENTS[kind]
@@ -334,15 +337,19 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             # Floored at the F statistics' resolution (_REL_RESOLUTION of the level) so a
             # deterministic prediction (a nuisance fitted as 0) cannot turn a tiny mismatch into
             # an infinite log-likelihood.
-            var_i, pooled = _replicate_spread(x)
+            scales = any(c in fitter.gs.library[n].scales_spread for n in names)
+            _, b, centre = level_spread(x) if scales else (0.0, 0.0, None)
+            var_i, pooled = _replicate_spread(x, centre)
             floor = float(_rel_floor(x))
             h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base, fitter.gs.library, model)
+            if scales:
+                h_track = E.spread_leverage(h_track, b)
             pred[c]["sd"][k] = np.sqrt((var_i + floor) * (1 + h_track))
             pred[c]["sd_level"][k] = np.sqrt((pooled + floor) * (1 + h_level))
     return pred
 
 
-def _replicate_spread(x):
+def _replicate_spread(x, centre=None):
     """Each robot's simulated spread from replicates x (M, N), and the mean over robots (what a
     mean over robots varies by, times n).
 
@@ -360,7 +367,10 @@ def _replicate_spread(x):
     The typical spread is the robots' median variance over the median of the chi-square that M
     replicates draw (the common variance when robots are alike), not their mean: one robot 6x
     noisier than the rest (robots that differ in noise) had widened every other robot's
-    prediction through the mean; the centre of the pull is that median too."""
+    prediction through the mean; the centre of the pull is that median too. ``centre`` (N,), where
+    given, is each robot's own centre instead (:func:`level_spread`: a spread that grows with the
+    robot's level, read off its mean), and the pull's weight is what the robots' variances differ
+    from it by beyond replicate noise."""
     from scipy.stats import chi2
 
     with np.errstate(all="ignore"):
@@ -373,13 +383,42 @@ def _replicate_spread(x):
     ok = np.isfinite(var_i) & (var_i > 0)
     if ok.sum() < 3 or not typical > 0:
         return np.where(ok, 0.5 * var_i + 0.5 * typical, typical), mean
-    dev = np.log(var_i[ok] / typical)
+    centre = np.full(var_i.shape, typical) if centre is None else np.where(np.asarray(centre) > 0, centre, typical)
+    dev = np.log(var_i[ok] / centre[ok])
     s2 = float(np.mean(split[np.isfinite(split)] ** 2)) / 4.0  # var(half a - half b) = 2 x 2 x a whole's
     tau2 = max(float(np.var(dev, ddof=1)) - s2, 0.0)
     w = tau2 / (tau2 + s2) if tau2 + s2 > 0 else 0.0
-    out = np.full(var_i.shape, typical)
-    out[ok] = typical * np.exp(w * dev)
+    out = centre.copy()
+    out[ok] = centre[ok] * np.exp(w * dev)
     return out, mean
+
+
+def level_spread(x):
+    """How a summary's one-trial variance grows with its level, from replicates x (M, N) of
+    robots at different levels: ``(a, b, centre)``, var = a + b L^2 by least squares over robots
+    of each robot's replicate variance on its squared mean (less the mean's own sampling
+    variance, var / M), and each robot's variance on that line (NaN where it has none). ``b`` is
+    bounded by 0 (a spread that does not scale) and the robots' median var / L^2 (all of it
+    scales, a = 0): robots that hardly differ in level cannot tell the two apart, and a slope
+    fitted to noise there would not be bounded at all. For :func:`effects.spread_leverage` and
+    as the centre of :func:`_replicate_spread`'s pull: a robot's mean is known from M replicates
+    far better than its variance (of a skewed summary: relative sd 0.2 against 0.6 at M = 30)."""
+    with np.errstate(all="ignore"):
+        var = np.nanvar(x, axis=0, ddof=1)
+        n = np.isfinite(x).sum(0)
+        sq = np.nanmean(x, axis=0) ** 2 - var / np.maximum(n, 1)
+        ratio = var / sq
+    ok = np.isfinite(var) & np.isfinite(sq) & (sq > 0) & (n > 1)
+    nan = np.full(var.shape, np.nan)
+    if ok.sum() == 0:
+        return 0.0, 0.0, nan
+    top = max(float(np.median(ratio[ok])), 0.0)
+    if ok.sum() < 3 or np.ptp(sq[ok]) == 0:
+        b = top
+    else:
+        b = float(np.clip(np.polyfit(sq[ok], var[ok], 1)[0], 0.0, top))
+    a = max(float(np.mean(var[ok] - b * sq[ok])), 0.0)
+    return a, b, np.where(ok, a + b * np.where(ok, sq, 0.0), nan)
 
 
 def _without_wild_replicates(x, k: float = 10.0):
@@ -1157,7 +1196,10 @@ def _heldout_gain(x, drift: bool, base_absorbs: bool, noise: tuple | None = None
                 # each robot's own variance at its fitted intensity, as _replicate_spread keeps it
                 # for robots whose simulated spreads differ beyond replicate noise
                 var_i = s_w2 * (1 - f + f * r_hat**2)
-                gain += loglik(y, mean, var_i * (1 + w / np.maximum(n, 1))) - base
+                # the level's error carried through the spread it sets, as in _heldout: of the
+                # variance a + b L^2 (L = level r), b = f s_w2 / level^2 scales
+                h = E.spread_leverage(w / np.maximum(n, 1), f * s_w2 / level**2)
+                gain += loglik(y, mean, var_i * (1 + h)) - base
                 continue
             base = loglik(y, mu, spread[:, None] * (1 + 1 / n_all))
             mean_ll = loglik(y, mean, within[:, None] * (1 + w / np.maximum(n, 1)))

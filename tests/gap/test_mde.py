@@ -72,7 +72,12 @@ def _named_by_loop(x, null_mean, threshold, base_absorbs, rng, noise=None, s_w2=
                 continue
             n_i = np.isfinite(train[:, i]).sum()
             var_i = within if noise is None else own[i]
-            cand_var = var_i * (1 + w[i] / max(n_i, 1))
+            h = w[i] / max(n_i, 1)
+            if noise is not None:  # the level's error through the spread: var = a + b L^2,
+                # b = f s_w2 / level^2; V = h (var + b V), the predictive var + (1 + b) V
+                b = noise[1] * s_w2 / noise[0] ** 2
+                h = h * (1 + b) / (1 - min(h * b, 0.9))
+            cand_var = var_i * (1 + h)
             gain[i] += _logpdf(x[k, i], pooled[i], cand_var) - _logpdf(x[k, i], mu, base_var)
     return decide({"effect": gain}, lambda name: ["signal"], rng, 200, library={})["named"]
 
