@@ -770,7 +770,7 @@ def spread_leverage(h, b, cap: float = 0.9):
 
     Within a robot, one trial's summary varies by ``var(L) = a + b L^2`` around its level L
     (``b``: the share of the spread that scales with the level, see
-    :func:`kilobot_twin.gap.workflow.level_spread_slope`). The level is known to V = h var(L)
+    :func:`kilobot_twin.gap.workflow.level_spread`). The level is known to V = h var(L)
     (h: the leverage of the robot's estimate), so the predictive variance is
     E[var(L)] + V = var(L-hat) + (1 + b) V, the expectation over the level's uncertainty. V is
     itself at the unknown level: taken at its expectation, V = h (var(L-hat) + b V), so

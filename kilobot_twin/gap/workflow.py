@@ -1096,7 +1096,9 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     noise, the robots' effects, G (``noise`` only), the bootstrap indices, the replicates'
     variances (``dof`` only). The effect's predictive variance is each
     robot's own at its fitted ratio (robots apart in noise keep their own simulated spread in
-    :func:`_heldout`, see :func:`_replicate_spread`); the base's is the population's, ``s_w2``."""
+    :func:`_heldout`, see :func:`_replicate_spread`), widened by its level's error through the
+    spread as there (:func:`effects.spread_leverage`, b = f s_w2 / level^2); the base's is the
+    population's, ``s_w2``."""
     rng = np.random.default_rng(seed)
     K, N = seen.shape
     eps = rng.normal(0.0, np.sqrt(s_w2), (reps, K, N))
