@@ -338,7 +338,7 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             # deterministic prediction (a nuisance fitted as 0) cannot turn a tiny mismatch into
             # an infinite log-likelihood.
             scales = any(c in fitter.gs.library[n].scales_spread for n in names)
-            _, b, centre = level_spread(x) if scales else (0.0, 0.0, None)
+            b, centre = level_spread(x) if scales else (0.0, None)
             var_i, pooled = _replicate_spread(x, centre)
             floor = float(_rel_floor(x))
             h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base, fitter.gs.library, model)
@@ -395,7 +395,7 @@ def _replicate_spread(x, centre=None):
 
 def level_spread(x):
     """How a summary's one-trial variance grows with its level, from replicates x (M, N) of
-    robots at different levels: ``(a, b, centre)``, var = a + b L^2 by least squares over robots
+    robots at different levels: ``(b, centre)``, var = a + b L^2 by least squares over robots
     of each robot's replicate variance on its squared mean (less the mean's own sampling
     variance, var / M), and each robot's variance on that line (NaN where it has none). ``b`` is
     bounded by 0 (a spread that does not scale) and the robots' median var / L^2 (all of it
@@ -409,16 +409,15 @@ def level_spread(x):
         sq = np.nanmean(x, axis=0) ** 2 - var / np.maximum(n, 1)
         ratio = var / sq
     ok = np.isfinite(var) & np.isfinite(sq) & (sq > 0) & (n > 1)
-    nan = np.full(var.shape, np.nan)
     if ok.sum() == 0:
-        return 0.0, 0.0, nan
+        return 0.0, np.full(var.shape, np.nan)
     top = max(float(np.median(ratio[ok])), 0.0)
     if ok.sum() < 3 or np.ptp(sq[ok]) == 0:
         b = top
     else:
         b = float(np.clip(np.polyfit(sq[ok], var[ok], 1)[0], 0.0, top))
     a = max(float(np.mean(var[ok] - b * sq[ok])), 0.0)
-    return a, b, np.where(ok, a + b * np.where(ok, sq, 0.0), nan)
+    return b, np.where(ok, a + b * sq, np.nan)
 
 
 def _without_wild_replicates(x, k: float = 10.0):

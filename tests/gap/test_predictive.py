@@ -330,14 +330,15 @@ def test_level_spread_recovers_how_the_spread_grows_with_the_level():
     for _ in range(D):
         L = np.exp(rng.normal(0.0, 1.1, N))
         x = L * rng.gamma(k, 1 / k, (M, N)) + rng.normal(0.0, np.sqrt(a), (M, N))
-        a_hat, b_hat, centre = level_spread(x)
+        b_hat, centre = level_spread(x)
         slopes.append(b_hat)
     assert np.mean(slopes) == pytest.approx(1 / k, abs=4 * np.std(slopes) / np.sqrt(D))
     var = x.var(0, ddof=1)
-    assert centre == pytest.approx(a_hat + b_hat * (x.mean(0) ** 2 - var / M))
+    a_hat = centre - b_hat * (x.mean(0) ** 2 - var / M)  # the line's intercept, one for every robot
+    assert a_hat == pytest.approx(np.full(N, a_hat[0])) and a_hat[0] >= 0
     # One level for every robot: at most all of the spread is taken to scale.
     x1 = 2.0 * rng.gamma(k, 1 / k, (M, N)) + rng.normal(0.0, np.sqrt(a), (M, N))
-    _, b1, _ = level_spread(x1)
+    b1, _ = level_spread(x1)
     v1 = x1.var(0, ddof=1)
     assert 0.0 <= b1 <= np.median(v1 / (x1.mean(0) ** 2 - v1 / M)) + 1e-12
 
