@@ -160,71 +160,6 @@ def shrink(est, se2, keep_spread: bool = False):
     return np.where(ok, mu + (np.sqrt(w) if keep_spread else w) * (est - mu), mu), w
 
 
-def noise_levels(d, c: float, slope: float, a: float, b: float, grid: int = 401):
-    """Each robot's heading-noise variance sigma^2 from its trials' diffusion summaries ``d``
-    (K', N), for robots that differ in noise by a factor (ln sigma normal over robots, as
-    :class:`MotionNoise` has it): the posterior mean and variance of each robot's level
-    L = c + slope sigma^2 under a lognormal population of sigma^2 whose two parameters are fitted
-    to the robots (empirical Bayes, marginal likelihood on a grid of sigma^2).
-
-    A robot's mean over its n trials is taken as normal about its level L with variance
-    (a + b (L - c)^2) / n: ``a`` the part that no heading noise makes (tracking noise), ``b`` the
-    relative variance of one trial's heading part (a variance estimated from a few stretches of
-    track: about 1-2). The variance is that at the candidate level, so a level far below a noisy
-    robot's mean is unlikely (it would have scattered far less than it did). A linear pool with one
-    variance for all robots (:func:`partial_pool`) pulls a robot whose noise is a factor of several
-    above the rest half way back to them and a quiet robot, whose mean is known to its tracking
-    noise, up towards them (independent world, seed 3005: the noisiest robot's diffusion, 11.9 x 1e-4
-    rad^2/s over its trials, was predicted at 6.7 on held-out trials).
-
-    Returns ``(sigma2, level_var)``, each (N,): the posterior mean of sigma^2 (so the robot's
-    predicted level is the posterior mean of L) and the posterior variance of L; robots without a
-    trial get the population's mean and its variance."""
-    from scipy.optimize import minimize
-
-    d = np.asarray(d, dtype=float)
-    n = np.isfinite(d).sum(-2)
-    with np.errstate(all="ignore"):
-        m = np.nanmean(d, axis=-2)
-    ok = n > 0
-    N = d.shape[-1]
-    slope = max(float(slope), 1e-30)
-    est = (m[ok] - c) / slope
-    centre = float(np.median(est[est > 0])) if np.any(est > 0) else max(float(np.mean(np.abs(est))), 1e-12)
-    lg = np.log(centre) + np.linspace(np.log(1e-3), np.log(1e3), grid)  # ln sigma^2, 3 decades each way
-    g = np.exp(lg)
-    L = c + slope * g
-    mo, no = m[ok], n[ok]
-    # The robot's mean is normal about its level with the variance at that level: a level far
-    # below a noisy robot's mean would have made it scatter far less than it did.
-    v = (max(a, 0.0) + max(b, 0.0) * (L - c) ** 2)[None, :] / no[:, None]
-    v = np.maximum(v, 1e-300)
-    ll = -0.5 * (mo[:, None] - L[None, :]) ** 2 / v - 0.5 * np.log(v)  # (robots, grid)
-    ll -= ll.max(axis=1, keepdims=True)
-    lik = np.exp(ll)
-
-    def log_prior(theta):
-        mu, tau = theta[0], np.exp(theta[1])
-        lp = -0.5 * ((lg - mu) / tau) ** 2
-        return lp - np.log(np.exp(lp - lp.max()).sum()) - lp.max()
-
-    def neg_marginal(theta):
-        return -float(np.sum(np.log(lik @ np.exp(log_prior(theta)) + 1e-300)))
-
-    fit = minimize(neg_marginal, (float(np.log(centre)), 0.0), method="Nelder-Mead",
-                   options={"xatol": 1e-3, "fatol": 1e-6, "maxiter": 400})
-    mu, ltau = fit.x[0], float(np.clip(fit.x[1], np.log(0.02), np.log(5.0)))
-    post = lik * np.exp(log_prior((mu, ltau)))[None, :]
-    post /= post.sum(axis=1, keepdims=True)
-    level = post @ L
-    var_l = np.maximum(post @ L**2 - level**2, 0.0)
-    prior = np.exp(log_prior((mu, ltau)))
-    pop_level, pop_var = float(prior @ L), float(prior @ L**2 - (prior @ L) ** 2)
-    sigma2, level_var = np.full(N, (pop_level - c) / slope), np.full(N, pop_var)
-    sigma2[ok], level_var[ok] = (level - c) / slope, var_l
-    return np.maximum(sigma2, 0.0), level_var
-
-
 def _est_var_bias(ref, model, resim=None):
     """Variance of a trial's estimated bias that comes from measurement and white noise alone:
     the spread over replicates of each (trial, robot), simulated without trial-to-trial jitter."""
@@ -681,26 +616,14 @@ class MotionNoise(Effect):
         s2 = model.swarm.sigma_omega**2
         if resim is None or not np.any(s2 > 0):
             return model
-        zero = resim(model.with_traits(sigma_omega=np.zeros(n)))
-        c = np.nanmean(zero["diffusion"])
+        c = np.nanmean(resim(model.with_traits(sigma_omega=np.zeros(n)))["diffusion"])
         slope = (np.nanmean(ref["diffusion"]) - c) / np.mean(s2)
+        d_i, w = partial_pool(meas["diffusion"])
 
         def variance(d):
             return np.where(np.isfinite(d), np.maximum(d - c, 0.0) / max(slope, 1e-30), np.mean(s2))
 
-        # One trial's diffusion varies within a robot by a + b (slope sigma^2)^2: a without heading
-        # noise, b from the current model's robots (one level: its replicates' within-robot variance).
-        a = float(np.nanmean(within_var(zero["diffusion"])))
-        ref_level = slope * float(np.mean(s2))
-        b = max(float(np.nanmean(within_var(ref["diffusion"]))) - a, 0.0) / max(ref_level**2, 1e-300)
-        sig2, level_var = noise_levels(meas["diffusion"], c, slope, a, b)
-        # The leverage machinery takes the level's error as h x one trial's variance at the level,
-        # carried through the spread by spread_leverage (h (1 + b) / (1 - h b)); h is set so that
-        # this is the posterior's own variance: h / (1 - h b) = r, r = level_var / var(level).
-        Kp = max(int(np.isfinite(meas["diffusion"]).any(-1).sum()), 1)
-        r = level_var / np.maximum(a + b * (slope * sig2) ** 2, 1e-300)
-        w = Kp * r / (1.0 + r * b)
-        m = model.with_traits(sigma_omega=np.sqrt(sig2)).pooled("diffusion", w)
+        m = model.with_traits(sigma_omega=np.sqrt(variance(d_i))).pooled("diffusion", w)
         m = m.with_individual({"sigma_omega": w}, sigma_omega=np.sqrt(variance(partial_pool(meas["diffusion"], keep_spread=True)[0])))
         # The trial-to-trial bias spread keeps only what the new noise does not already explain.
         b = _bias(meas["turn_rate"], m)
