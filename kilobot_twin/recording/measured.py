@@ -5,9 +5,9 @@ robot per sample). :func:`load` validates both and returns per-(trial, robot) tr
 problem is one line naming the file, the line and the column. Missing rows are tracking
 gaps and stay gaps: nothing is interpolated.
 
-Rows of different (trial, robot) pairs may be interleaved in any order; within one pair the
-times must increase down the file (a repeated or backwards time is an error: it usually means
-two recordings were concatenated or a trial index is wrong).
+Rows come in any order (the format says so: a tracker may write frame by frame, a database
+query in no order at all); each (trial, robot)'s samples are sorted by time. A time that a
+(trial, robot) has twice is an error: the same sample twice, or two recordings put in one trial.
 """
 
 from __future__ import annotations
@@ -175,7 +175,6 @@ def load(folder: str | Path) -> Dataset:
     robots = set(meta["robots"])
     trials = meta["trials"]
     rows: dict[tuple[int, int], list] = {}
-    last_t: dict[tuple[int, int], float] = {}
     with path.open(newline="") as f:
         reader = csv.reader(f)
         header = next(reader, None)
@@ -225,17 +224,18 @@ def load(folder: str | Path) -> Dataset:
             t = vals["t_s"]
             if t < 0:
                 raise ConfigError(f"{path}:{line_no}: column t_s", f"negative time {t}", "t_s restarts at 0 every trial")
-            if key in last_t and t <= last_t[key]:
-                what = "repeats" if t == last_t[key] else "goes back from"
-                raise ConfigError(f"{path}:{line_no}: column t_s", f"time {t:g} {what} {last_t[key]:g} for trial {key[0]} "
-                                  f"robot {key[1]}", "each (trial, robot) needs increasing times; remove duplicates")
-            last_t[key] = t
+            vals["line"] = line_no
             rows.setdefault(key, []).append(vals)
     if not rows:
         raise ConfigError(str(path), "no observations", "add rows below the header")
     cols = [c for c in idx if c not in ("trial", "robot_id", "t_s")]
     tracks = {}
     for key, rs in rows.items():
+        rs.sort(key=lambda r: r["t_s"])  # stable: rows already in time order stay as they are
+        for a, b in zip(rs, rs[1:]):
+            if b["t_s"] == a["t_s"]:
+                raise ConfigError(f"{path}:{b['line']}: column t_s", f"time {b['t_s']:g} of trial {key[0]} robot {key[1]} "
+                                  f"is on line {a['line']} already", "each (trial, robot) has one row per time; remove duplicates")
         tracks[key] = Track(np.array([r["t_s"] for r in rs]), {c: np.array([r[c] for r in rs]) for c in cols})
     return Dataset(folder, meta, tracks)
 

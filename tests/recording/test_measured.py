@@ -38,12 +38,27 @@ def test_load_keeps_gaps_and_interleaving(tmp_path):
     assert np.isnan(x[0, 1, 1:]).all()
 
 
+def test_rows_and_columns_in_any_order(tmp_path):
+    """measured-v1 allows rows in any order (and names columns by the header): the same samples
+    with the columns permuted and the rows reversed load as the file in time order does, each
+    (trial, robot) sorted by time (here by hand: robot 0 at 0.0, 0.1, 0.2, 0.3)."""
+    rows = CSV.splitlines()[1:] + ["0,0,0.2,0.002,0.5"]
+    shuffled = "y_m,robot_id,x_m,trial,t_s\n" + "".join(
+        f"{y},{r},{x},{k},{t}\n" for k, r, t, x, y in (line.split(",") for line in reversed(rows)))
+    ds = measured.load(make(tmp_path, csv=shuffled))
+    tr = ds.track(0, 0)
+    assert tr.t_s.tolist() == [0.0, 0.1, 0.2, 0.3]
+    assert tr.values["x_m"].tolist() == [0.0, 0.001, 0.002, 0.003]
+    assert tr.values["y_m"].tolist() == [0.0, 0.0, 0.5, 0.0]
+    assert ds.track(0, 1).values["x_m"].tolist() == [1.0]
+
+
 @pytest.mark.parametrize("csv, where", [
     ("trial,robot_id,t_s,x_m\n0,0,0,0\n", "observations.csv:1"),                     # missing column y_m
     (CSV + "0,0,0.4,abc,0\n", "observations.csv:6: column x_m"),                    # non-numeric
     (CSV + "0,7,0.4,0,0\n", "observations.csv:6: column robot_id"),                 # robot not in robots
     (CSV + "0,0,0.3,0,0\n", "observations.csv:6: column t_s"),                      # duplicated sample
-    (CSV + "0,0,0.2,0,0\n", "observations.csv:6: column t_s"),                      # backwards in time
+    ("trial,robot_id,t_s,x_m,y_m\n0,0,0.3,0,0\n0,0,0.1,0,0\n0,0,0.3,1,0\n", "observations.csv:4: column t_s"),  # apart
     (CSV + "0,0,0.4,nan,0\n", "observations.csv:6: column x_m"),                    # NaN
     (CSV + "1,0,0.4,0,0\n", "observations.csv:6: column trial"),                    # trial out of range
 ])
