@@ -1,9 +1,11 @@
 """Evaluate the gap workflow on datasets with known hidden effects, and print the issue's figures.
 
 For every case (hidden effect set) and seed: write a dataset, run the workflow, compare the named
-set with the truth. Two generators: ``synth`` (the twin itself, nuisances randomised with
-``--random-nuisance``) and ``indep`` (``benchmarks/indep_world.py``, another code base, every
-nuisance and the dataset's shape randomised per seed). Figures, each against its target:
+set with the truth. Three generators: ``synth`` (the twin itself, nuisances randomised with
+``--random-nuisance``), ``indep`` (``benchmarks/indep_world.py``, another code base, every
+nuisance and the dataset's shape randomised per seed) and ``stress`` (``benchmarks/stress_world.py``,
+a third code base with other modelling choices again: a stand-in for the issue's unseen third
+generator). Figures, each against its target:
 
 - exact naming where every hidden effect is at least 1.5x the report's own minimum detectable
   effect (MDE), and "nothing wrong named" below it; nothing named on null data; ``unexplained``
@@ -76,10 +78,15 @@ def realised_sizes(truth: dict) -> dict:
     return {"clock_drift": float(np.std(c, ddof=1) / np.mean(c))}
 
 
-def _indep():
+#: generator -> the file beside this one that writes its datasets (``generate``, as indep_world's)
+WORLDS = {"indep": "indep_world", "stress": "stress_world"}
+
+
+def _world(generator: str):
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location("indep_world", Path(__file__).with_name("indep_world.py"))
+    name = WORLDS[generator]
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(name + ".py"))
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -87,8 +94,8 @@ def _indep():
 
 def _write(job: dict, ds: Path, effect_scale: float) -> dict:
     kind, hidden, seed = job["kind"], job["hidden"], job["seed"]
-    if job["generator"] == "indep":
-        return _indep().generate(kind, hidden, ds, seed=seed, nuisance_scale=job["nuisance_scale"],
+    if job["generator"] in WORLDS:
+        return _world(job["generator"]).generate(kind, hidden, ds, seed=seed, nuisance_scale=job["nuisance_scale"],
                                  effect_scale=effect_scale, fixed_shape=job["fixed_shape"],
                                  program="random" if job.get("random_program") else None,
                                  nuisance=job.get("nuisance_override"))
@@ -410,8 +417,9 @@ def main(argv=None):
     ap.add_argument("--out", default="out/eval_gap")
     ap.add_argument("--cases", default="", help="only these cases, e.g. 'motion:bias_drift,light_sweep:none'")
     ap.add_argument("--first-seed", type=int, default=1000)
-    ap.add_argument("--generator", choices=("synth", "indep"), default="synth",
-                    help="synth: the twin itself; indep: benchmarks/indep_world.py (another code base)")
+    ap.add_argument("--generator", choices=("synth", *WORLDS), default="synth",
+                    help="synth: the twin itself; indep: benchmarks/indep_world.py (another code base); "
+                         "stress: benchmarks/stress_world.py (a third)")
     ap.add_argument("--nuisance-scale", type=float, default=None,
                     help="indep: every nuisance at X x nominal (default: randomised per dataset)")
     ap.add_argument("--effect-scale", type=float, default=1.0, help="effect sizes x this")
@@ -429,8 +437,9 @@ def main(argv=None):
     if a.summarise:
         summarise(json.loads((out / "results.json").read_text()), note)
         return 0
-    if a.random_program and a.generator != "indep":
-        print("error: --random-program: needs --generator indep (the twin's synth runs the twin's own program)", file=sys.stderr)
+    if a.random_program and a.generator not in WORLDS:
+        print("error: --random-program: needs --generator indep or stress (the twin's synth runs the twin's own program)",
+              file=sys.stderr)
         return 2
     if a.heading_noise_tau is not None and (a.generator != "indep" or a.heading_noise_tau < 0):
         print("error: --heading-noise-tau: needs --generator indep and a correlation time >= 0 s", file=sys.stderr)
@@ -466,7 +475,7 @@ def main(argv=None):
             print(f"error: --{e}", file=sys.stderr)
             return 2
     tag = "mde" if a.at_mde else (f"x{a.nuisance_scale}" if a.nuisance_scale is not None else
-                                  ("rand" if a.generator == "indep" or a.random_nuisance else "nominal"))
+                                  ("rand" if a.generator in WORLDS or a.random_nuisance else "nominal"))
     tag += "_prog" if a.random_program else ""
     tag += f"_tau{a.heading_noise_tau:g}" if a.heading_noise_tau is not None else ""
     jobs = [{"kind": k, "hidden": h, "seed": a.first_seed + s, "out": str(out), "generator": a.generator,
