@@ -446,8 +446,9 @@ def generate(kind, hidden, out, seed=0, nuisance_scale=None, effect_scale=1.0, f
              "nuisance": nz, "nuisance_scale": nuisance_scale, "shape": shape, "program": program,
              "setup": {k: setup[k] for k in keep}, **extra,
              "robots": {str(i): {k: float(np.broadcast_to(v, (n,))[i]) for k, v in per_robot.items()} for i in range(n)}}
-    (out / "truth.json").write_text(json.dumps(truth, indent=1, default=lambda o: o.tolist()))
-    return json.loads((out / "truth.json").read_text())
+    text = json.dumps(truth, indent=1, default=lambda o: o.tolist())
+    (out / "truth.json").write_text(text)
+    return json.loads(text)  # plain JSON types, as a reader of truth.json gets them
 
 
 class _Parser(argparse.ArgumentParser):
