@@ -189,7 +189,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
         # frame into the robot's blinking, so the timing error differs between replicates too.
         lead = rng.uniform(0.0, cond.dt_s, size=(len(runs), len(swarm))) if frame_lead == "random" else None
         led = blink_leds(sc, swarm, seed, runs, trial_idx, T, lead)
-        s = summaries.blink(np.where(mask, led.astype(float), np.nan), cond.dt_s)
+        s = summaries.blink(np.where(mask, led.astype(float), np.nan), cond.dt_s, threads=THREADS)
     return {k: v.reshape(M, Kp, -1) for k, v in s.items()}
 
 
