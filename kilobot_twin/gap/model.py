@@ -85,7 +85,7 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         x, y = summaries.mask_before_onset(x, y, noise)
         x, y = x[..., ::q], y[..., ::q]
         observed = np.isfinite(x)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed, _start_poses(x, y, dt_s),
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed, _start_poses(x, y, dt_s),
                           corr["white_m"], corr["correlated_m"], corr["tau_s"],
                           forward_speed_m_s=float(ds.meta.get("nominal_speed_m_s", synth.FORWARD_SPEED_M_S)))
         s = summaries.motion(x, y, dt_s, wander_lags_s=summaries.wander_lags(total_tracking_noise(cond)))
@@ -93,12 +93,12 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         st, rd = ds.grid("stimulus")[1][..., ::q], ds.grid("reading")[1][..., ::q]
         observed = np.isfinite(rd)
         s = summaries.light_sweep(st, rd)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed)
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed)
     else:
         led = ds.grid("led")[1][..., ::q]
         observed = np.isfinite(led)
         s = summaries.blink(led, dt_s)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.duration_s, dt_s, observed,
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed,
                           half_period_ticks=int(ds.meta.get("half_period_ticks", synth.HALF_PERIOD_TICKS)),
                           tick_hz=float(ds.meta.get("nominal_tick_hz", synth.TICK_HZ)))
     return cond, s

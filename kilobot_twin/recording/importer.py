@@ -47,7 +47,7 @@ def heading_from_motion(x: np.ndarray, y: np.ndarray, min_step_m: float = 1e-4) 
 
 
 def trial_period_s(ds: Dataset) -> float:
-    return ds.duration_s + max(1.0, 2.0 * ds.dt_s)
+    return ds.span_s + max(1.0, 2.0 * ds.dt_s)
 
 
 def import_dataset(dataset: str | Path, out: str | Path) -> dict:
@@ -82,7 +82,7 @@ def import_dataset(dataset: str | Path, out: str | Path) -> dict:
             for k in range(len(tr)):
                 events.append((int(stamps[k]), 1, robot, ("led", int(tr.values["led"][k]))))
     events.sort(key=lambda e: (e[0], e[1], e[2]))
-    trials = [{"trial": k, "start_ns": k * period_ns, "end_ns": k * period_ns + int(round(ds.duration_s * NS))}
+    trials = [{"trial": k, "start_ns": k * period_ns, "end_ns": k * period_ns + int(round(ds.span_s * NS))}
               for k in range(ds.trials)]
 
     w = TwinBagWriter(out)

@@ -77,6 +77,13 @@ class Dataset:
     def duration_s(self) -> float:
         return float(self.meta["duration_s"])
 
+    @property
+    def span_s(self) -> float:
+        """The longest trial: ``duration_s``, or the latest sample time where a trial ran longer
+        (the format gives one ``duration_s`` for all trials; trials of uneven length, or a
+        timestamp jittered past the end, would otherwise fall off the sample grid)."""
+        return max(self.duration_s, max(float(tr.t_s[-1]) for tr in self.tracks.values()))
+
     def track(self, trial: int, robot: int) -> Track | None:
         return self.tracks.get((trial, robot))
 
@@ -84,9 +91,10 @@ class Dataset:
         """Values on the nominal sample grid: (trials, robots, T) with gaps as ``fill``.
 
         Samples are placed at ``round(t_s / dt_s)``; jittered times land on their nearest slot.
+        The grid spans :attr:`span_s`, so that no sample of a longer trial is lost.
         Returns (t_s (T,), values).
         """
-        T = int(round(self.duration_s / self.dt_s)) + 1
+        T = int(round(self.span_s / self.dt_s)) + 1
         out = np.full((self.trials, len(self.robots), T), fill, dtype=np.float64)
         col = {r: i for i, r in enumerate(self.robots)}
         for (trial, robot), tr in self.tracks.items():

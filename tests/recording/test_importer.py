@@ -81,6 +81,24 @@ def test_motion_import_keeps_values_gaps_and_trial_boundaries(tmp_path):
     assert np.isfinite(rec.x).sum() == 2 * 202 - 10
 
 
+def test_a_trial_longer_than_duration_stays_before_the_next(tmp_path):
+    """duration_s is 50 s but trial 0 of robot 3 runs to 60 s: its trial window (meta) covers its
+    last sample, which lies before trial 1 starts, so no trial's samples run into the next one's."""
+    tracks = {}
+    for trial in range(2):
+        t, x, y, _ = circle(0.01, T=121 if trial == 0 else 101)
+        tracks[(trial, 3)] = Track(t, {"x_m": x, "y_m": y})
+    ds = write(tmp_path / "ds", {"kind": "motion", "robots": [3], "trials": 2, "dt_s": 0.5, "duration_s": 50.0,
+                                 "behavior": "straight", "nominal_speed_m_s": V}, tracks)
+    bag = import_dataset(ds, tmp_path / "bags" / "m")["path"]
+    trials = json.loads(BagReader(bag).metadata()["kilobot_twin.import"]["trials"])
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for t, m in rosbags_messages(bag)
+              if t == "/kilobot_3/pose"]  # read by rosbags, not by the project
+    assert len(stamps) == 222 and stamps[120] == pytest.approx(60.0)
+    assert trials[0]["end_ns"] == pytest.approx(60e9) and stamps[120] < trials[1]["start_ns"] * 1e-9
+    assert stamps[121] == pytest.approx(trials[1]["start_ns"] * 1e-9)  # trial 1's first sample, at its start
+
+
 def test_measured_theta_is_used_when_present(tmp_path):
     res = import_dataset(motion_dataset(tmp_path / "ds", with_theta=True), tmp_path / "m")
     msgs = [m for t, m in rosbags_messages(res["path"]) if t == "/kilobot_3/pose"]

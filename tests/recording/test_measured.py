@@ -38,6 +38,19 @@ def test_load_keeps_gaps_and_interleaving(tmp_path):
     assert np.isnan(x[0, 1, 1:]).all()
 
 
+def test_a_trial_longer_than_duration_keeps_every_sample(tmp_path):
+    """meta.yaml gives one duration_s; a trial that ran longer (uneven trials, or a jittered last
+    stamp) keeps its late samples on the grid, each in its own slot (by hand: robot 0's samples at
+    0.0, 0.1, 0.3, 0.5 and 0.6 s go to slots 0, 1, 3, 5, 6 of a 7-slot grid); a grid cut at
+    duration_s had piled the three late ones onto its last slot, keeping one."""
+    ds = measured.load(make(tmp_path, csv=CSV + "0,0,0.5,0.005,0\n0,0,0.6,0.006,0\n"))
+    assert ds.duration_s == 0.3 and ds.span_s == 0.6
+    t, x = ds.grid("x_m")
+    assert x.shape == (1, 2, 7) and np.allclose(t, np.arange(7) * 0.1)
+    np.testing.assert_array_equal(x[0, 0], [0.0, 0.001, np.nan, 0.003, np.nan, 0.005, 0.006])
+    assert measured.load(make(tmp_path)).span_s == 0.3  # no sample past duration_s: the grid as before
+
+
 def test_rows_and_columns_in_any_order(tmp_path):
     """measured-v1 allows rows in any order (and names columns by the header): the same samples
     with the columns permuted and the rows reversed load as the file in time order does, each
