@@ -203,13 +203,33 @@ def _resolution(s: dict, comp: str):
         return np.nanmean(floor, axis=(-2, -1))
 
 
+#: The least spread a one-sided statistic's simulated null is taken to have: those statistics are
+#: log ratios of mean squares, and sampling alone gives the log F of <= 40 robots a null sd of
+#: sqrt(2 / 39) = 0.23 or more under any noise. A null far narrower is a world without noise (clocks
+#: started with the frames and never jittering: every replicate blinks alike), where the fitted
+#: model's pooled per-robot rates differ from the data's means by parts in a thousand and the
+#: between-robot F by 0.005, which against a null sd of 0 read as z 10^9: a right clock_drift
+#: resolved nothing (synth blink 3012). A missing effect moves such an F by orders of magnitude.
+LOG_RATIO_RESOLUTION = 0.05
+
+
+def null_sd(null, sided: int) -> float:
+    """The spread of a statistic under the simulated null (finite replicates, ddof 1), at least
+    its resolution: :data:`LOG_RATIO_RESOLUTION` for the one-sided log ratios,
+    :data:`_REL_RESOLUTION` of its mean for the two-sided levels."""
+    null = np.asarray(null, dtype=float)
+    null = null[np.isfinite(null)]
+    floor = LOG_RATIO_RESOLUTION if sided == 1 else _REL_RESOLUTION * abs(float(null.mean()))
+    return max(float(null.std(ddof=1)), floor, 1e-300)
+
+
 def _p_value(obs, null, sided):
     """Calibrated p-value: z of the observed statistic against the simulated null (normal tail,
-    so that p can be smaller than 1 / number of simulations)."""
+    so that p can be smaller than 1 / number of simulations), in the null's :func:`null_sd`."""
     from scipy.stats import norm
 
     null = null[np.isfinite(null)]
-    z = (obs - null.mean()) / max(null.std(ddof=1), 1e-12)
+    z = (obs - null.mean()) / null_sd(null, sided)
     p = norm.sf(z) if sided == 1 else 2 * norm.sf(abs(z))
     return float(z), float(p)
 
@@ -966,10 +986,7 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
     from scipy.stats import norm
 
     stats = statistics(kind, null, trials)
-    sd0 = {}  # each statistic's spread under the simulated null
-    for name, (v, _) in stats.items():
-        v = np.asarray(v, dtype=float)
-        sd0[name] = float(np.nanstd(v[np.isfinite(v)], ddof=1))
+    sd0 = {name: null_sd(v, sided) for name, (v, sided) in stats.items()}  # each statistic's null spread
     z_det = norm.isf(alpha / len(stats))
     z = z_det + norm.isf(1 - power)
     out = {}

@@ -214,6 +214,28 @@ def test_detect_holds_each_statistic_to_alpha_over_the_family():
         assert g["flagged"] is flagged
 
 
+def test_a_null_without_spread_is_read_to_the_statistics_resolution():
+    """A world without noise (blink clocks started with the frames, no jitter) simulates the same
+    summaries in every replicate: the null of the between-robot log F has no spread. The data's
+    log F, from a right model's pooled estimates, differs from it by 0.005: by hand, z = 0.005 /
+    0.05 (the log ratio's resolution) = 0.1, p = 1 - Phi(0.1) = 0.460, not flagged; a log F 1.0
+    above the null (a missing effect: the F 2.7x the model's) is z = 20, flagged. Against the
+    null's own spread of 0 the first had been z ~ 10^9 (synth blink 3012 left a right clock_drift
+    unnamed). The null's own spread is used where it is wider (the test above)."""
+    K, M = 4, 80
+    t = np.arange(16)
+    base = np.broadcast_to(1.0 + 0.01 * t, (M, K, 16))  # every replicate alike, robots differ
+    null = {"toggle_rate": base.copy()}
+    f0 = float(np.log((K * np.var(1.0 + 0.01 * t, ddof=1)) / (1e-4 * base.mean()) ** 2))  # at the msw floor
+    for shift, p_hand, flagged in ((0.005, norm.sf(0.1), False), (1.0, norm.sf(20.0), True)):
+        spread = np.exp(shift / 2)  # msb x exp(shift): log F moves by shift
+        x = base[0].mean() + (base[0] - base[0].mean()) * spread
+        found = {f["signal"]: f for f in detect("blink", {"toggle_rate": x}, null, K, 0.05)}
+        g = found["toggle_rate:between_robots"]
+        assert g["statistic"] == pytest.approx(f0 + shift, abs=1e-6)
+        assert g["p_value"] == pytest.approx(p_hand, rel=1e-3, abs=1e-300) and g["flagged"] is flagged
+
+
 def test_shrink_interval_inverts_the_bootstrap_and_covers_at_its_level():
     """The shrink 1 - after / before. Where every resampled gap before is above 0 its interval is
     the percentile interval of the resampled ratios (order statistics k = 2.5 % of 4,000 from each

@@ -238,6 +238,22 @@ def test_blink_frame_lead_follows_the_recording(tmp_path):
     assert rep["named_effects"] == ["clock_drift"]
 
 
+@pytest.mark.parametrize("hidden, named", [("clock_drift", ["clock_drift"]), ("", [])])
+def test_blink_in_a_world_without_noise(tmp_path, hidden, named):
+    """Clocks started with the frames and never jittering (synth's randomised seed 3012 draws no
+    clock jitter): every simulated replicate blinks alike and the null's statistics have no
+    spread. A right clock_drift is named (it had resolved nothing: its pooled rates' F was
+    0.005 off a null of spread 0), and the null dataset states a size it can detect (none had been
+    stated): robots without noise are told apart far below the earlier issue's 0.015."""
+    ds = tmp_path / "ds"
+    synth("blink", hidden, ds, seed=3012, nuisance={"clock_trial_sd": 0.0})
+    rep = run_gap([str(ds)], tmp_path / "out", gs=GapSettings(seed=3012), log=lambda *a: None)
+    sec = rep["datasets"][0]
+    assert sec["nuisances"]["frame_lead"] == "aligned"
+    assert rep["named_effects"] == named and not rep["unexplained"]
+    assert 0 < sec["minimum_detectable"]["clock_drift"]["size"] < 1e-3
+
+
 @pytest.mark.parametrize("kind, hidden, trait, program", [
     ("blink", "clock_drift", "clock_rate", {"half_period_ticks": 14, "tick_hz": 26.0}),
     ("motion", "speed_heterogeneity", "speed_factor", {"commanded_speed_m_s": 0.017}),
