@@ -49,6 +49,10 @@ class Conditions:
     #: :func:`summaries.tracking_noise_correlation`). 0: independent frames.
     tracking_correlated_m: float = 0.0
     tracking_tau_s: float = 0.0
+    #: The pixel grid the data's positions are reported on, ((step_x, origin_x), (step_y,
+    #: origin_y)) in m (:func:`summaries.position_lattice`), or None: the twin is observed
+    #: through the same grid, after its tracking noise.
+    lattice: tuple | None = None
     #: What the robots were programmed to do, from the dataset's meta: the commanded speed
     #: (motion; per-robot speed factors are relative to it) and the LED program (blink: toggle
     #: every ``half_period_ticks`` of a clock at ``tick_hz``; clock rates are relative to it).
@@ -75,18 +79,30 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         _, y = ds.grid("y_m")
         # Nuisances of the tracker are fitted to the data, not taken from meta or nominal values:
         # its noise level, its glitches and the robots' late starts.
-        noise = summaries.tracking_noise(x, y)
+        # Positions reported in whole pixels: the twin is observed through the same grid, and the
+        # tracker's own noise is what the grid leaves to explain (the median-based estimate reads
+        # 0 there, whatever the noise).
+        lattice = summaries.position_lattice(x, y)
+        pixel = _lattice_sd(lattice)
+        noise = float(np.hypot(summaries.tracking_noise(x, y), pixel))
         x, y, _ = summaries.reject_glitches(x, y, noise)
-        noise = summaries.tracking_noise(x, y)
-        # Whether the tracker's errors persist from frame to frame (at the recorded frame rate):
-        # the simulations then reproduce them, since they bend a track over seconds as the heading
-        # noise does and would otherwise be read as it.
-        corr = summaries.tracking_noise_correlation(x, y, ds.dt_s, noise_m=noise)
-        x, y = summaries.mask_before_onset(x, y, noise)
+        if lattice is None:
+            noise = summaries.tracking_noise(x, y)
+            # Whether the tracker's errors persist from frame to frame (at the recorded frame
+            # rate): the simulations then reproduce them, since they bend a track over seconds as
+            # the heading noise does and would otherwise be read as it.
+            corr = summaries.tracking_noise_correlation(x, y, ds.dt_s, noise_m=noise)
+        else:
+            # On a grid the error of a slow robot's position is a sawtooth over frames, which the
+            # correlated part's fit would take for a tracker that smooths: the grid itself is
+            # simulated instead, and a correlated error besides it is not fitted.
+            noise = summaries.lattice_noise(x, y, lattice, ds.dt_s)
+            corr = {"white_m": noise, "correlated_m": 0.0, "tau_s": 0.0}
+        x, y = summaries.mask_before_onset(x, y, float(np.hypot(noise, pixel)))
         x, y = x[..., ::q], y[..., ::q]
         observed = np.isfinite(x)
         cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed, _start_poses(x, y, dt_s),
-                          corr["white_m"], corr["correlated_m"], corr["tau_s"],
+                          corr["white_m"], corr["correlated_m"], corr["tau_s"], lattice=lattice,
                           forward_speed_m_s=float(ds.meta.get("nominal_speed_m_s", synth.FORWARD_SPEED_M_S)))
         s = summaries.motion(x, y, dt_s, wander_lags_s=summaries.wander_lags(total_tracking_noise(cond)))
     elif kind == "light_sweep":
@@ -104,9 +120,16 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
     return cond, s
 
 
+def _lattice_sd(lattice) -> float:
+    """The sd a pixel grid adds to a position, step / sqrt(12) (rms over the two coordinates);
+    0 without one."""
+    return 0.0 if lattice is None else float(np.sqrt(np.mean([g[0] ** 2 for g in lattice]) / 12.0))
+
+
 def total_tracking_noise(cond: Conditions) -> float:
-    """The tracker's whole position noise sd: the independent and the correlated parts."""
-    return float(np.hypot(cond.tracking_noise_m, cond.tracking_correlated_m))
+    """The tracker's whole position noise sd: the independent and the correlated parts, and the
+    pixel grid's."""
+    return float(np.hypot(np.hypot(cond.tracking_noise_m, cond.tracking_correlated_m), _lattice_sd(cond.lattice)))
 
 
 def _start_poses(x, y, dt_s, lag_s=2.0):
@@ -160,7 +183,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
         # as start + f (a - start) + noise * z, without temporaries the size of the tracks).
         hidden = ~mask
         tracks = []
-        for a in (x, y):
+        for axis, a in enumerate((x, y)):
             z = rng.standard_normal(mask.shape)
             z *= cond.tracking_noise_m
             if cond.tracking_correlated_m > 0:
@@ -171,6 +194,8 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
                 a *= f
                 a += a0
             z += a
+            if cond.lattice is not None:  # reported in whole pixels, as the data are
+                summaries.quantize(z, *cond.lattice[axis], out=z)
             z[hidden] = np.nan
             tracks.append(z)
         s = summaries.motion(*tracks, cond.dt_s, wander_lags_s=summaries.wander_lags(total_tracking_noise(cond)),

@@ -7,6 +7,16 @@ from pathlib import Path
 import numpy as np
 
 
+
+def _fmt(v) -> str:
+    """A fitted nuisance as the report prints it: numbers to 3 significant digits, lists of them
+    (a pixel grid's two steps) as x / y."""
+    if isinstance(v, float):
+        return f"{v:.3g}"
+    if isinstance(v, list):
+        return " / ".join(_fmt(x) for x in v)
+    return str(v)
+
 def write_markdown(out: Path, report: dict, residuals: list) -> Path:
     """report.md and one figure per dataset; ``residuals[j]``: per-robot held-out residuals of the
     base and the final model of dataset j (``before``, ``after``)."""
@@ -63,7 +73,7 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
                       "more trials raise it):"]
             for trait, v in s["estimates"].items():
                 lines.append(f"- {trait}: expected r {v['expected_r']:.2f}")
-        lines += ["", "Nuisances fitted by the base model: " + ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}" for k, v in s.get("nuisances", {}).items()), ""]
+        lines += ["", "Nuisances fitted by the base model: " + ", ".join(f"{k} {_fmt(v)}" for k, v in s.get("nuisances", {}).items()), ""]
         fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
         res = residuals[j]
         x = np.arange(len(s["robots"]))

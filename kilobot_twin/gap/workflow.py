@@ -1247,7 +1247,8 @@ def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
                 "speed_trial_sd": float(base.speed_trial_sd), "bias_trial_sd": float(sw.bias_trial_sd.mean()),
                 "tracking_noise_m": float(cond.tracking_noise_m),
                 **({"tracking_correlated_m": float(cond.tracking_correlated_m), "tracking_tau_s": float(cond.tracking_tau_s)}
-                   if cond.tracking_correlated_m > 0 else {})}
+                   if cond.tracking_correlated_m > 0 else {}),
+                **({"pixel_m": [float(g[0]) for g in cond.lattice]} if cond.lattice is not None else {})}
     if base.kind == "light_sweep":
         return {"sensor_noise_counts": float(sw.sensor_noise.mean())}
     return {"clock_trial_sd": float(sw.clock_trial_sd.mean()), "frame_lead": base.frame_lead}

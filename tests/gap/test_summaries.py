@@ -90,6 +90,58 @@ def test_diffusion_of_a_diffusing_heading_matches_theory():
         assert se < 0.015 * sig2  # the check has teeth: a factor 1.1 off fails it
 
 
+def _pixel_tracks(seed, v, sig, p=0.00375, o=0.0007, R=40, T=601, dt=0.1):
+    """The tests' own unicycle (heading diffusion 4e-4 rad^2/s) at speed v, tracker noise sig,
+    reported in whole pixels of p (grid origin o), rounded here by hand: (x, y, true x, true y)."""
+    rng = np.random.default_rng(seed)
+    th = rng.uniform(-np.pi, np.pi, (R, 1)) + unicycle.brownian_headings(rng, R, T, dt, 4e-4)
+    x, y = unicycle.tracks(rng, th, v, dt, sig)
+    x, y = x + rng.uniform(-0.3, 0.3, (R, 1)), y + rng.uniform(-0.3, 0.3, (R, 1))
+    return o + np.round((x - o) / p) * p, o + np.round((y - o) / p) * p
+
+
+def test_positions_in_whole_pixels_are_found_on_their_grid():
+    """Tracks reported in whole pixels of 1.2536 mm from an origin 0.7 mm off, written to 5
+    decimals (as a file holds them: each value rounded by up to 5 um, so that their spacings read
+    1.25 or 1.26 mm, and the median one, 3.6 um short, puts the far end of the 1,300 steps 3.7
+    steps off its index): the grid's step and origin come back to well within the rounding (1e-8
+    m: a mean over hundreds of steps). Continuous positions (a tracker that interpolates, written
+    to 1 um) and a grid finer than 10 um have none; positions written to 0.1 mm lie on a 0.1 mm
+    grid, which is so."""
+    x, y = _pixel_tracks(1, 0.01, 0.001, p=0.0012536, R=80)
+    grid = summaries.position_lattice(np.round(x, 5), np.round(y, 5))
+    assert grid is not None
+    for step, origin in grid:
+        assert abs(step - 0.0012536) < 1e-8 and abs(origin - 0.0007) < 1e-6
+    rng = np.random.default_rng(2)
+    c = 0.3 * rng.standard_normal((2, 5, 601))
+    assert summaries.position_lattice(np.round(c[0], 6), np.round(c[1], 6)) is None
+    assert summaries.position_lattice(np.round(c[0] / 5e-6) * 5e-6, np.round(c[1] / 5e-6) * 5e-6) is None
+    g = summaries.position_lattice(np.round(c[0], 4), np.round(c[1], 4))
+    assert g is not None and all(abs(step - 1e-4) < 1e-12 for step, _ in g)
+
+
+def test_the_tracker_s_noise_behind_a_pixel_grid():
+    """Tracks in whole pixels of 3.75 mm (step / sqrt(12) = 1.08 mm) at 0.3 and 1.2 mm per frame,
+    with 0, 0.6 and 1.5 mm of tracker noise before the rounding: the median-based estimate reads 0
+    or a grid value whatever the noise; the twin's noise behind the grid comes back so that what it
+    adds in all, sqrt(sigma^2 + step^2 / 12), is within 3 % of the truth (the estimator's bias in
+    this range at most 1.6 %, its scatter over 10 seeds 0.6 %), and without noise no more than
+    0.25 mm. The twin observed through the grid then has what the data have: positions on it."""
+    p = 0.00375
+    for v in (0.003, 0.012):
+        for sig in (0.0, 0.0006, 0.0015):
+            x, y = _pixel_tracks(3, v, sig)
+            grid = summaries.position_lattice(x, y)
+            est = summaries.lattice_noise(x, y, grid, 0.1)
+            total = np.hypot(est, p / np.sqrt(12)) / np.hypot(sig, p / np.sqrt(12))
+            assert abs(total - 1) < 0.03 and (sig > 0 or est < 0.00025), (v, sig, est)
+    assert summaries.tracking_noise(*_pixel_tracks(3, 0.003, 0.0006)) == 0.0  # the median's reading
+    q = summaries.quantize(np.array([0.0007 + 0.00375 * 0.49, 0.0007 - 0.00375 * 0.51, np.nan]), 0.00375, 0.0007)
+    np.testing.assert_allclose(q[:2], [0.0007, 0.0007 - 0.00375], atol=1e-15)
+    assert np.isnan(q[2])
+
+
 def test_tracking_noise_that_persists_from_frame_to_frame_is_measured_and_independent_frames_stay_so():
     """The tests' own unicycle (heading diffusion 4e-4 rad^2/s at 1 cm/s, speed noise, 2 mm of
     independent tracking noise; 100 tracks of 60 s at 10 Hz): its frames are independent, and the
