@@ -82,9 +82,10 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         # Positions reported in whole pixels: the twin is observed through the same grid, and the
         # tracker's own noise is what the grid leaves to explain (the median-based estimate reads
         # 0 there, whatever the noise).
-        lattice = summaries.position_lattice(x, y)
+        noise = summaries.tracking_noise(x, y)
+        lattice = summaries.position_lattice(x, y, noise)
         pixel = _lattice_sd(lattice)
-        noise = float(np.hypot(summaries.tracking_noise(x, y), pixel))
+        noise = float(np.hypot(noise, pixel))
         x, y, _ = summaries.reject_glitches(x, y, noise)
         if lattice is None:
             noise = summaries.tracking_noise(x, y)

@@ -249,13 +249,18 @@ def tracking_noise(x, y) -> float:
 
 #: Positions count as lying on a lattice (:func:`position_lattice`) when 99 % of the distinct values
 #: of each coordinate lie within 5 % of a step of its grid, and the step is at least 10 um: finer
-#: grids are the CSV's decimal places, far below any tracker's noise.
-LATTICE = {"share": 0.99, "tolerance": 0.05, "min_step_m": 1e-5}
+#: grids are the CSV's decimal places, far below any tracker's noise. A grid whose own error,
+#: step / sqrt(12), is below ``relevant`` x the tracker's (median-based) noise adds under 1/16 of
+#: its variance, spread like noise: it is left to the noise, whose frame-to-frame correlation is
+#: then fitted as without a grid (the third world's files hold 5 decimals: a 10 um grid under
+#: millimetres of noise).
+LATTICE = {"share": 0.99, "tolerance": 0.05, "min_step_m": 1e-5, "relevant": 0.25}
 
 
-def position_lattice(x, y) -> tuple | None:
-    """The pixel grid that positions lie on, if they do: ((step_x, origin_x), (step_y, origin_y)) in
-    metres (origin within one step of 0), else None.
+def position_lattice(x, y, noise_m: float = 0.0) -> tuple | None:
+    """The pixel grid that positions lie on, if they do and it matters beside the tracker's noise
+    ``noise_m`` (:data:`LATTICE`): ((step_x, origin_x), (step_y, origin_y)) in metres (origin
+    within one step of 0), else None.
 
     A camera reports positions in whole pixels where its tracker does not interpolate between
     them. A Kilobot moves 0.3-1 mm per frame, so on a millimetre pixel its position stays put for
@@ -291,6 +296,8 @@ def position_lattice(x, y) -> tuple | None:
                 break
         else:
             return None
+    if np.sqrt(np.mean([g[0] ** 2 for g in out]) / 12.0) < LATTICE["relevant"] * noise_m:
+        return None
     return tuple(out)
 
 

@@ -107,7 +107,7 @@ def test_positions_in_whole_pixels_are_found_on_their_grid():
     steps off its index): the grid's step and origin come back to well within the rounding (1e-8
     m: a mean over hundreds of steps). Continuous positions (a tracker that interpolates, written
     to 1 um) and a grid finer than 10 um have none; positions written to 0.1 mm lie on a 0.1 mm
-    grid, which is so."""
+    grid, which is so; a grid whose error is small beside the tracker's noise is left to it."""
     x, y = _pixel_tracks(1, 0.01, 0.001, p=0.0012536, R=80)
     grid = summaries.position_lattice(np.round(x, 5), np.round(y, 5))
     assert grid is not None
@@ -119,6 +119,11 @@ def test_positions_in_whole_pixels_are_found_on_their_grid():
     assert summaries.position_lattice(np.round(c[0] / 5e-6) * 5e-6, np.round(c[1] / 5e-6) * 5e-6) is None
     g = summaries.position_lattice(np.round(c[0], 4), np.round(c[1], 4))
     assert g is not None and all(abs(step - 1e-4) < 1e-12 for step, _ in g)
+    # a grid that matters beside the tracker's noise only: 10 um (a file's 5 decimals, densely
+    # visited) under 1 mm adds 1e-5 of its variance (left to the noise), 1.25 mm pixels 0.13 (kept)
+    c5 = np.round(0.02 * rng.standard_normal((2, 20, 601)), 5)
+    assert summaries.position_lattice(*c5) is not None and summaries.position_lattice(*c5, noise_m=0.001) is None
+    assert summaries.position_lattice(np.round(x, 5), np.round(y, 5), noise_m=0.001) is not None
 
 
 def test_the_tracker_s_noise_behind_a_pixel_grid():
