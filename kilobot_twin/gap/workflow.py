@@ -494,6 +494,28 @@ def _loglik_per_robot(meas, pred, comps):
     return ll  # (N,)
 
 
+def resampled_excess(z, v):
+    """E[:func:`deviance`(Z)] - deviance(z) for Z ~ N(z, v): how much a mean resampled over
+    robots, at z predictive sds with a resampling variance v, raises the deviance on average.
+    Within ``HUBER_K`` it is v (z^2 grows by the variance); beyond, the deviance is linear and
+    it is nearly 0. Taking v off in every case, as the gap's bootstrap once did, centred a level
+    gap in the linear part far below its value: 68.8 with an interval of -102 .. -31 (the third
+    world's seed 3008, speed factors). Closed form by the normal's partial moments; NaN stays NaN."""
+    from scipy.stats import norm
+
+    z, v = np.asarray(z, dtype=float), np.asarray(v, dtype=float)
+    k = HUBER_K
+    with np.errstate(all="ignore"):
+        s = np.sqrt(np.maximum(v, 0.0))
+        ok = s > 0
+        s1 = np.where(ok, s, 1.0)
+        a, b = (-k - z) / s1, (k - z) / s1
+        Fa, Fb, fa, fb = norm.cdf(a), norm.cdf(b), norm.pdf(a), norm.pdf(b)
+        quad = z * z * (Fb - Fa) + 2 * z * s1 * (fa - fb) + s1 * s1 * ((Fb - Fa) + a * fa - b * fb)
+        lin = 2 * k * (z * (1 - Fb) + s1 * fb - z * Fa + s1 * fa) - k * k * ((1 - Fb) + Fa)
+        return np.where(ok, quad + lin - deviance(z), 0.0)
+
+
 def _gap(meas, pred, yard, comps, robots=None, parts=("track", "own", "level")) -> float:
     """The gap: held-out prediction error in noise units, the mean :func:`deviance` (z^2 within
     ``HUBER_K`` sds, linear beyond) minus a right model's mean (0 = as good as the model's noise).
@@ -518,9 +540,12 @@ def _gap(meas, pred, yard, comps, robots=None, parts=("track", "own", "level")) 
         extra = 0.0
         if robots is not None:
             # A resampled mean over robots varies by the robots' spread / n more than the mean
-            # does: that much is taken off the level part, so the bootstrap is centred on it.
+            # does, which raises its expected deviance: that much is taken off the level part, so
+            # the bootstrap is centred on it.
             with np.errstate(all="ignore"):
-                extra = np.nanvar(m - mu, axis=1) / yard[c]["sd_level"] ** 2
+                n_all = np.isfinite(m).sum(axis=1)
+                z = (np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (yard[c]["sd_level"] / np.sqrt(n_all))
+                extra = resampled_excess(z, np.nanvar(m - mu, axis=1) / yard[c]["sd_level"] ** 2)
             m, mu, sd, sd_own = m[:, robots], mu[:, robots], sd[:, robots], sd_own[:, robots]
         track.append(deviance((m - mu) / sd))
         own.append(deviance((m - mu) / sd_own))
