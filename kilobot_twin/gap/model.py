@@ -84,7 +84,7 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         # 0 there, whatever the noise).
         noise = summaries.tracking_noise(x, y)
         lattice = summaries.position_lattice(x, y, noise)
-        pixel = _lattice_sd(lattice)
+        pixel = summaries.lattice_sd(lattice)
         noise = float(np.hypot(noise, pixel))
         x, y, _ = summaries.reject_glitches(x, y, noise)
         if lattice is None:
@@ -121,16 +121,10 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
     return cond, s
 
 
-def _lattice_sd(lattice) -> float:
-    """The sd a pixel grid adds to a position, step / sqrt(12) (rms over the two coordinates);
-    0 without one."""
-    return 0.0 if lattice is None else float(np.sqrt(np.mean([g[0] ** 2 for g in lattice]) / 12.0))
-
-
 def total_tracking_noise(cond: Conditions) -> float:
     """The tracker's whole position noise sd: the independent and the correlated parts, and the
     pixel grid's."""
-    return float(np.hypot(np.hypot(cond.tracking_noise_m, cond.tracking_correlated_m), _lattice_sd(cond.lattice)))
+    return float(np.hypot(np.hypot(cond.tracking_noise_m, cond.tracking_correlated_m), summaries.lattice_sd(cond.lattice)))
 
 
 def _start_poses(x, y, dt_s, lag_s=2.0):

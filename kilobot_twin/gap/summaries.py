@@ -296,9 +296,15 @@ def position_lattice(x, y, noise_m: float = 0.0) -> tuple | None:
                 break
         else:
             return None
-    if np.sqrt(np.mean([g[0] ** 2 for g in out]) / 12.0) < LATTICE["relevant"] * noise_m:
+    if lattice_sd(out) < LATTICE["relevant"] * noise_m:
         return None
     return tuple(out)
+
+
+def lattice_sd(lattice) -> float:
+    """The sd a pixel grid (:func:`position_lattice`) adds to a position, step / sqrt(12) (rms over
+    the two coordinates); 0 without one."""
+    return 0.0 if lattice is None else float(np.sqrt(np.mean([g[0] ** 2 for g in lattice]) / 12.0))
 
 
 def quantize(a, step: float, origin: float, out=None):
