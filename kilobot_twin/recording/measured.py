@@ -183,7 +183,7 @@ def load(folder: str | Path) -> Dataset:
     robots = set(meta["robots"])
     trials = meta["trials"]
     rows: dict[tuple[int, int], list] = {}
-    with path.open(newline="") as f:
+    with path.open(newline="", encoding="utf-8-sig") as f:  # a spreadsheet may lead with a byte-order mark
         reader = csv.reader(f)
         header = next(reader, None)
         if header is None:

@@ -38,6 +38,15 @@ def test_load_keeps_gaps_and_interleaving(tmp_path):
     assert np.isnan(x[0, 1, 1:]).all()
 
 
+def test_a_byte_order_mark_before_the_header_is_no_column_name(tmp_path):
+    """A spreadsheet's UTF-8 export leads with a byte-order mark (EF BB BF), which a plain UTF-8
+    read makes part of the first column's name ("missing column 'trial'"): it loads as without."""
+    d = make(tmp_path)
+    (d / "observations.csv").write_bytes(b"\xef\xbb\xbf" + CSV.encode())
+    ds = measured.load(d)
+    assert ds.track(0, 0).t_s.tolist() == [0.0, 0.1, 0.3] and ds.track(0, 1).values["x_m"].tolist() == [1.0]
+
+
 def test_a_trial_longer_than_duration_keeps_every_sample(tmp_path):
     """meta.yaml gives one duration_s; a trial that ran longer (uneven trials, or a jittered last
     stamp) keeps its late samples on the grid, each in its own slot (by hand: robot 0's samples at
