@@ -6,7 +6,8 @@ problem is one line naming the file, the line and the column. Missing rows are t
 gaps and stay gaps: nothing is interpolated.
 
 Rows come in any order (the format says so: a tracker may write frame by frame, a database
-query in no order at all); each (trial, robot)'s samples are sorted by time. A time that a
+query in no order at all); each (trial, robot)'s samples are sorted by time. A row whose observed
+value is an empty or NaN cell is a lost sample, as a missing row is. A time that a
 (trial, robot) has twice is an error: the same sample twice, or two recordings put in one trial.
 """
 
@@ -31,6 +32,11 @@ COLUMNS = {
     "blink": (("trial", "robot_id", "t_s", "led"), ()),
 }
 LED_VALUES = {"red": 0, "blue": 1}
+#: The columns that say which sample a row is; the others hold what was observed.
+KEYS = ("trial", "robot_id", "t_s")
+#: What an observed value's cell may hold where the sample was lost (the format's own way is no
+#: row at all; a table exported with its gaps writes them as empty or NaN cells).
+MISSING = ("", "nan", "na", "n/a", "null", "none")
 
 
 @dataclass
@@ -201,23 +207,29 @@ def load(folder: str | Path) -> Dataset:
             if len(row) != len(header):
                 raise ConfigError(f"{path}:{line_no}", f"{len(row)} cells for {len(header)} columns",
                                   "every row needs one cell per header column")
-            vals = {}
+            vals, lost = {}, False
             for c in numeric:
                 cell = row[idx[c]].strip()
+                if c not in KEYS and cell.lower() in MISSING:
+                    lost = True  # a lost sample written as a row (a table export's NaN): as if absent
+                    continue
                 try:
                     v = float(cell)
                 except ValueError:
                     raise ConfigError(f"{path}:{line_no}: column {c}", f"not a number: {cell!r}",
-                                      "write a plain number (tracking gaps are missing rows, not empty cells)") from None
+                                      "write a plain number (a lost sample: no row, or an empty cell)") from None
                 if not math.isfinite(v):
                     raise ConfigError(f"{path}:{line_no}: column {c}", f"{cell!r} is not a finite number",
-                                      "drop the row instead: a missing sample is a missing row")
+                                      "write a finite number (a lost sample: no row, or an empty cell)")
                 vals[c] = v
             if "led" in idx:
                 cell = row[idx["led"]].strip().lower()
-                if cell not in LED_VALUES:
+                if cell in MISSING:
+                    lost = True
+                elif cell not in LED_VALUES:
                     raise ConfigError(f"{path}:{line_no}: column led", f"unknown LED colour {cell!r}", "write red or blue")
-                vals["led"] = float(LED_VALUES[cell])
+                else:
+                    vals["led"] = float(LED_VALUES[cell])
             trial, robot = vals["trial"], vals["robot_id"]
             if trial != int(trial) or not 0 <= trial < trials:
                 raise ConfigError(f"{path}:{line_no}: column trial", f"{trial:g} is not a trial in 0..{trials - 1}",
@@ -225,18 +237,20 @@ def load(folder: str | Path) -> Dataset:
             if robot != int(robot) or int(robot) not in robots:
                 raise ConfigError(f"{path}:{line_no}: column robot_id", f"robot {robot:g} is not in meta.yaml robots",
                                   "add it to robots: or fix the id")
-            if meta["kind"] == "light_sweep" and not 0 <= vals["stimulus"] <= 1:
+            if "stimulus" in vals and not 0 <= vals["stimulus"] <= 1:
                 raise ConfigError(f"{path}:{line_no}: column stimulus", f"{vals['stimulus']} is outside 0..1",
                                   "stimulus is the projected V-value in [0, 1]")
             key = (int(trial), int(robot))
             t = vals["t_s"]
             if t < 0:
                 raise ConfigError(f"{path}:{line_no}: column t_s", f"negative time {t}", "t_s restarts at 0 every trial")
+            if lost:
+                continue
             vals["line"] = line_no
             rows.setdefault(key, []).append(vals)
     if not rows:
         raise ConfigError(str(path), "no observations", "add rows below the header")
-    cols = [c for c in idx if c not in ("trial", "robot_id", "t_s")]
+    cols = [c for c in idx if c not in KEYS]
     tracks = {}
     for key, rs in rows.items():
         rs.sort(key=lambda r: r["t_s"])  # stable: rows already in time order stay as they are

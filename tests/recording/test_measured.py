@@ -38,6 +38,18 @@ def test_load_keeps_gaps_and_interleaving(tmp_path):
     assert np.isnan(x[0, 1, 1:]).all()
 
 
+def test_a_lost_sample_written_as_a_row_with_an_empty_or_nan_cell_is_a_missing_row(tmp_path):
+    """measured-v1 writes a lost sample as no row; a table exported with its gaps (pandas writes
+    NaN) writes the row with an empty or NaN value. Both load as the file without those rows (by
+    hand: robot 0 at 0.0, 0.1, 0.3), for positions and for LED colours alike."""
+    ds = measured.load(make(tmp_path, csv=CSV + "0,0,0.2,nan,NaN\n0,1,0.1,,\n0,1,0.2,NA,0.5\n"))
+    assert ds.track(0, 0).t_s.tolist() == [0.0, 0.1, 0.3] and ds.track(0, 1).t_s.tolist() == [0.0]
+    blink = META.replace("kind: motion", "kind: blink").replace("behavior: straight\n", "") + \
+        "half_period_ticks: 30\nnominal_tick_hz: 31\n"
+    ds = measured.load(make(tmp_path, meta=blink, csv="trial,robot_id,t_s,led\n0,0,0.0,red\n0,0,0.1,\n0,0,0.2,blue\n"))
+    assert ds.track(0, 0).t_s.tolist() == [0.0, 0.2] and ds.track(0, 0).values["led"].tolist() == [0.0, 1.0]
+
+
 def test_a_byte_order_mark_before_the_header_is_no_column_name(tmp_path):
     """A spreadsheet's UTF-8 export leads with a byte-order mark (EF BB BF), which a plain UTF-8
     read makes part of the first column's name ("missing column 'trial'"): it loads as without."""
@@ -81,7 +93,8 @@ def test_rows_and_columns_in_any_order(tmp_path):
     (CSV + "0,7,0.4,0,0\n", "observations.csv:6: column robot_id"),                 # robot not in robots
     (CSV + "0,0,0.3,0,0\n", "observations.csv:6: column t_s"),                      # duplicated sample
     ("trial,robot_id,t_s,x_m,y_m\n0,0,0.3,0,0\n0,0,0.1,0,0\n0,0,0.3,1,0\n", "observations.csv:4: column t_s"),  # apart
-    (CSV + "0,0,0.4,nan,0\n", "observations.csv:6: column x_m"),                    # NaN
+    (CSV + "0,0,0.4,inf,0\n", "observations.csv:6: column x_m"),                    # not finite
+    (CSV + "0,0,nan,0,0\n", "observations.csv:6: column t_s"),                      # a key cannot be lost
     (CSV + "1,0,0.4,0,0\n", "observations.csv:6: column trial"),                    # trial out of range
 ])
 def test_bad_rows_name_file_line_column(tmp_path, csv, where):
