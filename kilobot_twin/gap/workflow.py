@@ -500,7 +500,8 @@ def resampled_excess(z, v):
     Within ``HUBER_K`` it is v (z^2 grows by the variance); beyond, the deviance is linear and
     it is nearly 0. Taking v off in every case, as the gap's bootstrap once did, centred a level
     gap in the linear part far below its value: 68.8 with an interval of -102 .. -31 (the third
-    world's seed 3008, speed factors). Closed form by the normal's partial moments; NaN stays NaN."""
+    world's seed 3008, speed factors). Closed form by the normal's partial moments; a NaN z stays
+    NaN, and v of 0 adds nothing."""
     from scipy.stats import norm
 
     z, v = np.asarray(z, dtype=float), np.asarray(v, dtype=float)
@@ -514,6 +515,13 @@ def resampled_excess(z, v):
         quad = z * z * (Fb - Fa) + 2 * z * s1 * (fa - fb) + s1 * s1 * ((Fb - Fa) + a * fa - b * fb)
         lin = 2 * k * (z * (1 - Fb) + s1 * fb - z * Fa + s1 * fa) - k * k * ((1 - Fb) + Fa)
         return np.where(ok, quad + lin - deviance(z), 0.0)
+
+
+def _level_z(m, mu, sd_level):
+    """Each trial's level residual in predictive sds: (mean over robots of measured - of
+    predicted) / (sd_level / sqrt(robots seen)); m, mu (K, N) -> (K,)."""
+    n = np.isfinite(m).sum(axis=1)
+    return (np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (sd_level / np.sqrt(n))
 
 
 def _gap(meas, pred, yard, comps, robots=None, parts=("track", "own", "level")) -> float:
@@ -543,14 +551,12 @@ def _gap(meas, pred, yard, comps, robots=None, parts=("track", "own", "level")) 
             # does, which raises its expected deviance: that much is taken off the level part, so
             # the bootstrap is centred on it.
             with np.errstate(all="ignore"):
-                n_all = np.isfinite(m).sum(axis=1)
-                z = (np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (yard[c]["sd_level"] / np.sqrt(n_all))
-                extra = resampled_excess(z, np.nanvar(m - mu, axis=1) / yard[c]["sd_level"] ** 2)
+                v = np.nanvar(m - mu, axis=1) / yard[c]["sd_level"] ** 2
+                extra = resampled_excess(_level_z(m, mu, yard[c]["sd_level"]), v)
             m, mu, sd, sd_own = m[:, robots], mu[:, robots], sd[:, robots], sd_own[:, robots]
         track.append(deviance((m - mu) / sd))
         own.append(deviance((m - mu) / sd_own))
-        n = np.isfinite(m).sum(axis=1)
-        level.append(deviance((np.nanmean(m, axis=1) - np.nanmean(mu, axis=1)) / (yard[c]["sd_level"] / np.sqrt(n))) - extra)
+        level.append(deviance(_level_z(m, mu, yard[c]["sd_level"])) - extra)
     have = {"track": track, "own": own, "level": level}
     return float(np.mean([np.nanmean(np.stack(have[p])) - DEVIANCE_MEAN for p in parts]))
 
