@@ -86,7 +86,7 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         lattice = summaries.position_lattice(x, y, noise)
         pixel = summaries.lattice_sd(lattice)
         noise = float(np.hypot(noise, pixel))
-        x, y, _ = summaries.reject_glitches(x, y, noise)
+        x, y, _ = summaries.reject_glitches(x, y, noise, dt_s=ds.dt_s)
         if lattice is None:
             noise = summaries.tracking_noise(x, y)
             # Whether the tracker's errors persist from frame to frame (at the recorded frame
