@@ -287,6 +287,13 @@ def _naming(rows):
     print(f"\n  targets: above MDE named exactly      {_rate(exact(r['named'], r['hidden']) for r in above)}  (>= 95 %)")
     print(f"           below MDE nothing wrong named {_rate(none_wrong(r['named'], r['hidden']) for r in below)}  (>= 95 %)")
     print(f"           null data: nothing named      {_rate(not r['named'] for r in null)}  (>= 95 %)")
+    for kind in sorted({r["kind"] for r in null}):
+        # A base that reproduces the data scores a held-out gap of 0 (its sd here is ~0.1-0.3):
+        # a large one where nothing is flagged is a nuisance the base reads wrong.
+        g = sorted(((r["gap_before"], r["seed"]) for r in null if r["kind"] == kind), reverse=True)
+        v = np.array([x for x, _ in g])
+        print(f"           null data ({kind}): the base's held-out gap median {np.median(v):.2f}, 90th percentile "
+              f"{np.percentile(v, 90):.2f}, max {v[0]:.2f} (seed {g[0][1]}), above 1 in {(v > 1).sum()}/{v.size}")
     print(f"           outside the library: unexplained and nothing named "
           f"{_rate(r['unexplained'] and not r['named'] for r in outside)}  (>= 90 %)")
 
