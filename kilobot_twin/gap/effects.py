@@ -213,13 +213,12 @@ def _match_speed_level(m: TwinModel, target: float, resim, steps: int = BASE_LEV
     n = len(m.swarm)
     pts = []
     for _ in range(steps):
-        s = float(m.swarm.speed_factor.mean())
         ref = resim(m.with_traits(bias_trial_sd=np.zeros(n)))
-        f = float(np.nanmean(ref["speed"]))
-        if not (np.isfinite(target) and target > 0) or not (np.isfinite(f) and f > 0):
+        fb = float(np.nanmean(ref["speed"]))
+        if not (np.isfinite(target) and target > 0 and np.isfinite(fb) and fb > 0):
             break
-        pts.append((s, f))
-        sb, fb = pts[-1]
+        sb = float(m.swarm.speed_factor.mean())
+        pts.append((sb, fb))
         slope = fb / sb  # the ratio step's: the line through 0
         if len(pts) > 1:
             # The secant's, kept within what f(s) ~ s + c / s allows: below the ratio's, and not

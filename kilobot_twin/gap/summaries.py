@@ -534,14 +534,14 @@ def reject_glitches(x, y, noise_m: float, k: float = 4.5, floor_m: float = 0.001
     (``sqrt(1.5) noise_m`` per coordinate, floored at ``floor_m``) from the line through its
     observed neighbours (2-D distance), and the farthest of its neighbourhood, the two observed
     samples on each side (a glitch of size G shows as G at its frame and about G/2 at each
-    neighbour). Repeated ``rounds`` times (a
-    glitch next to a glitch). Returns copies with those samples NaN and how many were removed.
+    neighbour). Repeated ``rounds`` times (a glitch next to a glitch). Returns copies with those
+    samples NaN and how many were removed.
     A Gaussian sample is removed with probability below exp(-k^2 / 2) = 4e-5 (3.9 sds where the
     line's ends are far apart and the sample near one: its residual's variance is up to 2, not
     1.5, noise variances; 1e-4).
 
-    Neighbours up to :data:`GLITCH_SPAN_S` apart count (frames ``dt_s`` apart; 6 frames, without): a
-    tracker that loses a robot for a second reports a few stray frames in the gap, and a false
+    Neighbours up to :data:`GLITCH_SPAN_S` apart count (frames ``dt_s`` apart; without it, 6
+    frames): a tracker that loses a robot for a second reports a few stray frames in the gap, and a false
     detection among them has no neighbour within 6 frames. Left in, one such 13 cm glitch set one
     track's heading diffusion 100x the others' and the base's heading noise 3.6x the truth (the
     third world's seed 3003: 0.0127 for 0.0035). Track ends are extrapolated within 6 frames only."""
@@ -557,13 +557,13 @@ def reject_glitches(x, y, noise_m: float, k: float = 4.5, floor_m: float = 0.001
         # gap, the stray frames a line is drawn through, not the empty frames beside them).
         prev_i, next_i = _observed_neighbours(np.isfinite(x))
         near = []
-        for first, step in ((prev_i, prev_i), (next_i, next_i)):
-            j = first
+        for hop, none in ((prev_i, -1), (next_i, T)):
+            j = hop
             for _hop in range(2):
                 inside = (j >= 0) & (j < T) & (np.abs(j - idx) <= span)
                 jc = np.clip(j, 0, T - 1)
                 near.append(np.where(inside, np.take_along_axis(dn, jc, -1), 0.0))
-                j = np.where(inside, np.take_along_axis(step, jc, -1), -1 if step is prev_i else T)
+                j = np.where(inside, np.take_along_axis(hop, jc, -1), none)
         neigh = np.max(np.stack(near), axis=0)
         bad = (dn > thr) & (dn >= neigh)
         if not bad.any():
