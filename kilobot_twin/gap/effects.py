@@ -169,19 +169,17 @@ def _est_var_bias(ref, model, resim=None):
     return _pooled_replicate_var(b)
 
 
-def _trial_spread(b, ref, model, resim=None, noise=None):
-    """The trial-to-trial bias spread (sd, per robot) an effect leaves: the within-robot variance
-    of the trials' biases ``b`` (K', N) about what the effect predicts (or that variance itself,
-    a float) less what measurement and white noise make (:func:`_est_var_bias`). In a fold
+def _trial_spread(var: float, ref, model, resim=None, noise=None):
+    """The trial-to-trial bias spread (sd, per robot) an effect leaves: ``var``, the within-robot
+    variance of the trials' biases about what the effect predicts, less what measurement and
+    white noise make (:func:`_est_var_bias`). In a fold
     (``noise``: the effect's fit on all trials, ``Effect.refits_noise``) the all-trials fit's, as
     the base's: refitted on two trials of 36 robots it scattered from fold to fold, and the
     held-out trial's spread with it (third world, seed 3018: trial 2's turn rates at a z variance
     of 1.91 under a named heading bias, 1.06 under the base; 1.28 with the all-trials spread)."""
-    n = len(model.swarm)
     if noise is not None:
         return np.asarray(noise.swarm.bias_trial_sd, dtype=float).copy()
-    var = within_var(b) if np.ndim(b) else float(b)
-    return np.full(n, np.sqrt(max(var - _est_var_bias(ref, model, resim), 0.0)))
+    return np.full(len(model.swarm), np.sqrt(max(float(var) - _est_var_bias(ref, model, resim), 0.0)))
 
 
 def _pooled_replicate_var(x):
@@ -594,7 +592,7 @@ class HeadingBias(Effect):
     def fit(self, model, meas, ref, resim=None, noise: TwinModel | None = None):
         b = _bias(meas["turn_rate"], model) - model.swarm.bias_drift[None, :] * _trial_index(meas)
         bias, w = partial_pool(b)
-        m = model.with_traits(heading_bias=bias, bias_trial_sd=_trial_spread(b, ref, model, resim, noise)).pooled("turn_rate", w)
+        m = model.with_traits(heading_bias=bias, bias_trial_sd=_trial_spread(within_var(b), ref, model, resim, noise)).pooled("turn_rate", w)
         return m.with_individual({"heading_bias": w}, heading_bias=partial_pool(b, keep_spread=True)[0])
 
 
@@ -721,7 +719,7 @@ class MotionNoise(Effect):
         m = model.with_traits(sigma_omega=np.sqrt(variance(d_i))).pooled("diffusion", w)
         m = m.with_individual({"sigma_omega": w}, sigma_omega=np.sqrt(variance(partial_pool(meas["diffusion"], keep_spread=True)[0])))
         # The trial-to-trial bias spread keeps only what the new noise does not already explain.
-        return m.with_traits(bias_trial_sd=_trial_spread(_bias(meas["turn_rate"], m), ref, m, resim, noise))
+        return m.with_traits(bias_trial_sd=_trial_spread(within_var(_bias(meas["turn_rate"], m)), ref, m, resim, noise))
 
 
 class SensorGain(Effect):
