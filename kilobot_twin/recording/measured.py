@@ -14,6 +14,7 @@ value is an empty or NaN cell is a lost sample, as a missing row is. A time that
 from __future__ import annotations
 
 import csv
+import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -200,6 +201,9 @@ def load(folder: str | Path) -> Dataset:
                 raise ConfigError(f"{path}:1", f"missing column {col!r}",
                                   f"{meta['kind']} data needs columns {','.join(required)}")
         idx = {c: header.index(c) for c in required + tuple(o for o in optional if o in header)}
+        tracks = _plain_tracks(path, len(header), idx, meta)
+        if tracks is not None:
+            return Dataset(folder, meta, tracks)
         numeric = [c for c in idx if c != "led"]
         for line_no, row in enumerate(reader, start=2):
             if not row or all(not c.strip() for c in row):
@@ -260,6 +264,67 @@ def load(folder: str | Path) -> Dataset:
                                   f"is on line {a['line']} already", "each (trial, robot) has one row per time; remove duplicates")
         tracks[key] = Track(np.array([r["t_s"] for r in rs]), {c: np.array([r[c] for r in rs]) for c in cols})
     return Dataset(folder, meta, tracks)
+
+
+def _led_cell(cell: str) -> float:
+    colour = LED_VALUES.get(cell.strip().lower())
+    if colour is None:
+        raise ValueError(cell)
+    return float(colour)
+
+
+def _plain_tracks(path: Path, columns: int, idx: dict, meta: dict) -> dict | None:
+    """:func:`load`'s tracks of a plain file, read by NumPy in one pass; None for any other file,
+    which the row-by-row reader then reads, naming the line of whatever is wrong. Plain: no quotes,
+    every non-empty line has ``columns`` cells, every cell read is a finite number (an LED a
+    colour), every trial and robot is one of meta.yaml's and no (trial, robot) has a time twice.
+    The tracks are the row-by-row reader's to the bit, in the same order (a (trial, robot) where
+    its first row is); the row-by-row reader took 4.6 s over the 580,000 rows of 40 robots x 8
+    trials x 60 s at 30 Hz, a tenth of the gap workflow's time on them."""
+    text = path.read_text(encoding="utf-8-sig")
+    head = text.find("\n")
+    if '"' in text or head < 0:
+        return None
+    body = text[head + 1:]
+    if not body.strip():
+        return None
+    raw = np.frombuffer(body.encode("utf-8"), np.uint8)
+    ends = np.flatnonzero(raw == ord("\n"))
+    if raw[-1] != ord("\n"):
+        ends = np.append(ends, raw.size)
+    starts = np.concatenate([[0], ends[:-1] + 1])
+    commas = np.flatnonzero(raw == ord(","))
+    cells = np.searchsorted(commas, ends) - np.searchsorted(commas, starts) + 1
+    if np.any((ends > starts) & (cells != columns)):
+        return None  # the row-by-row reader names the line
+    names = list(idx)
+    try:
+        a = np.loadtxt(io.StringIO(body), delimiter=",", comments=None, usecols=[idx[c] for c in names],
+                       converters={idx["led"]: _led_cell} if "led" in idx else None, dtype=float, ndmin=2)
+    except ValueError:
+        return None
+    if not a.shape[0] or not np.isfinite(a).all():
+        return None
+    v = {c: a[:, j] for j, c in enumerate(names)}
+    trial, robot, t = v["trial"], v["robot_id"], v["t_s"]
+    if (np.any(trial != np.round(trial)) or np.any(trial < 0) or np.any(trial >= meta["trials"])
+            or np.any(robot != np.round(robot)) or not np.isin(robot, list(meta["robots"])).all()
+            or np.any(t < 0) or ("stimulus" in v and np.any((v["stimulus"] < 0) | (v["stimulus"] > 1)))):
+        return None
+    order = np.lexsort((t, robot, trial))
+    k, r, ts = trial[order], robot[order], t[order]
+    new = np.concatenate([[True], (k[1:] != k[:-1]) | (r[1:] != r[:-1])])
+    if np.any(~new[1:] & (ts[1:] == ts[:-1])):
+        return None  # a time twice
+    first = np.flatnonzero(new)
+    bounds = np.append(first, order.size)
+    where = np.minimum.reduceat(order, first)  # each (trial, robot)'s first row in the file
+    values = [c for c in names if c not in KEYS]
+    tracks = {}
+    for g in np.argsort(where, kind="stable"):
+        rows = order[bounds[g]:bounds[g + 1]]
+        tracks[(int(k[bounds[g]]), int(r[bounds[g]]))] = Track(t[rows], {c: v[c][rows] for c in values})
+    return tracks
 
 
 def write(folder: str | Path, meta: dict, tracks: dict) -> Path:

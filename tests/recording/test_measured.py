@@ -121,3 +121,75 @@ def test_cli_gap_on_bad_dataset_exits_2_with_one_line(tmp_path):
                        capture_output=True, text=True)
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1 and "robot_id" in p.stderr
+
+
+def _rowwise(folder):
+    """The dataset as the row-by-row (csv module) reader alone reads it."""
+    fast = measured._plain_tracks
+    measured._plain_tracks = lambda *a: None
+    try:
+        return measured.load(folder)
+    finally:
+        measured._plain_tracks = fast
+
+
+def _plain_files():
+    """Plain files a tracker or a table export writes: rows shuffled, columns in another order
+    with one the format does not use, the optional heading, a byte-order mark, CRLF line ends,
+    blank lines, numbers in exponent form, LED colours in any case."""
+    rng = np.random.default_rng(5)
+    rows = [(k, r, round(0.1 * j, 1), *rng.normal(0, 0.1, 3)) for k in range(2) for r in (3, 7, 11) for j in range(40)
+            if rng.random() > 0.1]
+    order = rng.permutation(len(rows))
+    motion = "robot_id,x_m,note,t_s,theta_rad,trial,y_m\r\n" + "".join(
+        f"{rows[i][1]},{rows[i][3]:.6e},n{i},{rows[i][2]},{float(rows[i][5])!r},{rows[i][0]},{rows[i][4]:.5f}\r\n"
+        + ("\r\n" if i % 17 == 0 else "") for i in order)
+    blink = "trial,robot_id,t_s,led\n" + "".join(
+        f"{rows[i][0]},{rows[i][1]},{rows[i][2]},{('red', 'Blue', ' BLUE ')[i % 3]}\n" for i in order)
+    meta = META.replace("robots: [0, 1]", "robots: [3, 7, 11]").replace("trials: 1", "trials: 2")
+    blink_meta = meta.replace("kind: motion", "kind: blink").replace("behavior: straight\n", "") + \
+        "half_period_ticks: 30\nnominal_tick_hz: 31\n"
+    return [(meta, b"\xef\xbb\xbf" + motion.encode()), (blink_meta, blink.encode())]
+
+
+@pytest.mark.parametrize("which", [0, 1])
+def test_a_plain_file_read_in_one_pass_gives_the_row_by_row_readers_tracks(tmp_path, which):
+    """Plain files are read by NumPy in one pass, 3-4x faster on large ones: the tracks must be
+    those of the csv module's reader to the bit, in the same order, with the same columns."""
+    meta, data = _plain_files()[which]
+    d = make(tmp_path, meta=meta)
+    (d / "observations.csv").write_bytes(data)
+    header = data.decode("utf-8-sig").splitlines()[0].split(",")
+    assert measured._plain_tracks(d / "observations.csv", len(header), {c: header.index(c) for c in header if c != "note"},
+                                  {"trials": 2, "robots": [3, 7, 11]}) is not None  # read in one pass
+    ds, ref = measured.load(d), _rowwise(d)
+    assert list(ds.tracks) == list(ref.tracks) and len(ds.tracks) == 6
+    for key, tr in ref.tracks.items():
+        got = ds.tracks[key]
+        assert list(got.values) == list(tr.values) == (["x_m", "y_m", "theta_rad"] if which == 0 else ["led"])
+        for a, b in [(got.t_s, tr.t_s)] + [(got.values[c], tr.values[c]) for c in tr.values]:
+            assert a.dtype == b.dtype == np.float64 and np.array_equal(a, b)
+        assert np.all(np.diff(got.t_s) > 0)
+
+
+@pytest.mark.parametrize("extra", [
+    '0,1,0.2,"1.5",0\n',      # quoted cell
+    "0,1,0.2,nan,0\n",        # a lost sample written as a row
+    "0,1,0.2,,0\n",           # the same, empty
+    "0,1,0.2,0,0,9\n",        # a cell too many
+    "0,1,0.2,0\n",            # a cell too few
+    "0,1,0.0,5,5\n",          # a time twice
+    "0,2,0.2,0,0\n",          # a robot not in meta.yaml
+    "0,1.5,0.2,0,0\n",        # a robot id that is no integer
+    "0,1,-0.1,0,0\n",         # a negative time
+    "0,1,0.2,1_0,0\n",        # what float() reads but a CSV reader should not need to
+])
+def test_any_other_file_goes_to_the_row_by_row_reader(tmp_path, extra):
+    """The one-pass reader takes plain files only; every other file is left to the row-by-row
+    reader, which names the line of an error or reads a lost sample as a gap."""
+    d = make(tmp_path, csv=CSV + extra)
+    assert measured._plain_tracks(d / "observations.csv", 5, {c: j for j, c in enumerate(CSV.split("\n")[0].split(","))},
+                                  {"trials": 1, "robots": [0, 1]}) is None
+    assert measured._plain_tracks(make(tmp_path).joinpath("observations.csv"), 5,
+                                  {c: j for j, c in enumerate(CSV.split("\n")[0].split(","))},
+                                  {"trials": 1, "robots": [0, 1]}) is not None
