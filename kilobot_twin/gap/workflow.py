@@ -271,51 +271,55 @@ class _Fitter:
 
     def __init__(self, cond: Conditions, meas: dict, start: E.TwinModel, gs: GapSettings, fit_base: bool):
         self.cond, self.meas, self.start, self.gs, self.fit_base = cond, meas, start, gs, fit_base
-        self.cache = {}  # (names, trials) -> fitted model
-        self.base_cache = {}  # trials -> fitted base model
+        self.cache = {}  # (names, trials) -> fitted model (names () : the base)
         self.refs = {}  # (depth, names so far, trials) -> reference simulation of that model
 
     def meas_on(self, trials):
         return E.Summaries({k: v[trials] for k, v in self.meas.items()}, trials)
 
     def fit(self, names: tuple, trials) -> E.TwinModel:
+        """The base fitted on ``trials``, then each effect of ``names`` in turn. A model of several
+        effects is its prefix's model (cached: the model named in an earlier round, fitted on the
+        same trials) with the last effect fitted on top, so a candidate differs from the current
+        model by that effect alone, not also by the prefix refitted on other simulations."""
         key = (names, tuple(int(t) for t in trials))
         if key in self.cache:
             return self.cache[key]
-        meas = self.meas_on(np.asarray(trials))
-        depth = len(names)
-        model = self.start
         all_trials = tuple(range(self.cond.trials))
         M = self.gs.m_ref if key[1] == all_trials else self.gs.m_fold
-        if self.fit_base:
-            if key[1] not in self.base_cache:
+        if not names:
+            model = self.start
+            if self.fit_base:
                 ref = simulate(self.cond, model, M, child_seed(self.gs.seed, "base_ref"), trials)
-
                 calls = itertools.count(1)
 
                 def resim_base(m):
                     return simulate(self.cond, m, M, child_seed(self.gs.seed, "base_probe", next(calls)), trials)
 
                 noise = None if key[1] == all_trials else self.fit((), all_trials)
-                self.base_cache[key[1]] = E.fit_base(model, meas, ref, resim_base, noise)
-            model = self.base_cache[key[1]]
-        for j, name in enumerate(names):
-            # The reference simulation depends only on the model so far (same seed for every
-            # candidate at this depth): simulated once per (names so far, trials), not per candidate.
-            ref_key = (depth, names[:j], key[1])
-            ref = self.refs.get(ref_key)
-            if ref is None:
-                ref = self.refs[ref_key] = simulate(self.cond, model, M, child_seed(self.gs.seed, "effect_ref", depth, j), trials)
+                model = E.fit_base(model, self.meas_on(np.asarray(trials)), ref, resim_base, noise)
+            self.cache[key] = model
+            return model
+        prefix = self.fit(names[:-1], trials)
+        depth, j = len(names), len(names) - 1
+        # The reference simulation depends only on the model so far (same seed for every
+        # candidate at this depth): simulated once per (names so far, trials), not per candidate.
+        ref_key = (depth, names[:j], key[1])
+        ref = self.refs.get(ref_key)
+        if ref is None:
+            ref = self.refs[ref_key] = simulate(self.cond, prefix, M, child_seed(self.gs.seed, "effect_ref", depth, j), trials)
 
-            def resim(m, _j=j):
-                return simulate(self.cond, m, M, child_seed(self.gs.seed, "effect_resim", depth, _j), trials)
+        def resim(m):
+            return simulate(self.cond, m, M, child_seed(self.gs.seed, "effect_resim", depth, j), trials)
 
-            effect = self.gs.library[name]
-            if effect.refits_noise and key[1] != all_trials:
-                model = effect.fit(model, meas, ref, resim, noise=self.fit(names[: j + 1], all_trials))
-            else:
-                model = effect.fit(model, meas, ref, resim)
-            model.named = list(names[: j + 1])
+        effect, meas = self.gs.library[names[-1]], self.meas_on(np.asarray(trials))
+        if effect.refits_noise and key[1] != all_trials:
+            model = effect.fit(prefix, meas, ref, resim, noise=self.fit(names, all_trials))
+        else:
+            model = effect.fit(prefix, meas, ref, resim)
+        if model is prefix:  # an effect with nothing to fit: the prefix's cached model stays as it is
+            model = prefix.with_traits()
+        model.named = list(names)
         self.cache[key] = model
         return model
 

@@ -211,7 +211,7 @@ def test_clock_drift_takes_the_frame_lead_that_its_own_clocks_allow(tmp_path):
     gs = W.GapSettings(seed=1, m_null=80, m_ref=12, m_score=20, boot=300)
     fitter = W._Fitter(cond, meas, E.nominal_model("blink", cond.robot_ids), gs, True)
     trials = list(range(cond.trials))
-    fitter.base_cache[tuple(trials)] = fitter.fit((), trials).with_traits(frame_lead="random")  # the situation
+    fitter.cache[((), tuple(trials))] = fitter.fit((), trials).with_traits(frame_lead="random")  # the situation
     m = fitter.fit(("clock_drift",), trials)
     sims = E._spread_own(simulate(cond, m, 80, seed=5)["toggle_rate"])  # (80,)
     assert E._spread_own(meas["toggle_rate"]) >= np.percentile(sims, 2.5), (m.frame_lead, np.percentile(sims, [2.5, 50]))

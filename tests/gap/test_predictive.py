@@ -385,3 +385,24 @@ def test_replicate_spread_pulls_towards_a_given_centre():
     s = np.sqrt(2 / (M - 1))
     assert np.sqrt(np.mean(np.square(err_c))) < s / 2
     assert np.sqrt(np.mean(np.square(err_t))) > 0.8 * s
+
+
+def test_a_candidate_of_two_effects_is_the_named_model_with_the_second_fitted_on_top(tmp_path):
+    """In round 2 the candidate (speed_heterogeneity, heading_bias) is scored against the model
+    named in round 1, (speed_heterogeneity,): on every set of trials (all, and each fold's) its
+    speed factors must be that model's to the bit, so the score compares the added effect alone.
+    Refitted on the reference simulations of another depth, the prefix's factors had moved by
+    Monte Carlo noise between the two models, and every fold had simulated the prefix's fit
+    again. The second effect is fitted (its biases are not the prefix's zeros)."""
+    gs = GapSettings(seed=1, m_null=80, m_ref=12, m_score=20, boot=300)
+    synth("motion", "heading_bias,speed_heterogeneity", tmp_path / "d", seed=3)
+    cond, meas = measured_summaries(measured.load(tmp_path / "d"))
+    meas = E.Summaries(meas, np.arange(cond.trials))
+    fitter = _Fitter(cond, meas, E.nominal_model("motion", cond.robot_ids), gs, True)
+    everything = list(range(cond.trials))
+    for trials in [everything] + [[t for t in everything if t != k] for k in everything]:
+        one = fitter.fit(("speed_heterogeneity",), trials)
+        two = fitter.fit(("speed_heterogeneity", "heading_bias"), trials)
+        np.testing.assert_array_equal(two.swarm.speed_factor, one.swarm.speed_factor)
+        assert np.ptp(two.swarm.heading_bias) > 0 and np.ptp(one.swarm.heading_bias) == 0
+        assert one.named == ["speed_heterogeneity"] and two.named == ["speed_heterogeneity", "heading_bias"]
