@@ -281,10 +281,7 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
         # Identical robots (Eq. 4): all of the bias's spread beyond noise is trial-to-trial. A
         # fold takes the all-trials fit's, as the effects' folds do (Effect.refits_noise): the
         # base and an effect are scored on held-out trials with spreads fitted alike.
-        if noise is not None:
-            return m.with_traits(bias_trial_sd=noise.swarm.bias_trial_sd)
-        spread = max(float(np.nanvar(b, ddof=1)) - _est_var_bias(ref, m), 0.0)
-        return m.with_traits(bias_trial_sd=np.full(n, np.sqrt(spread)))
+        return m.with_traits(bias_trial_sd=_trial_spread(float(np.nanvar(b, ddof=1)), ref, m, None, noise))
     if model.kind == "light_sweep":
         g = model.swarm.sensor_gain.mean() * np.nanmean(meas["gain"]) / np.nanmean(ref["gain"])
         o = model.swarm.sensor_offset.mean() + np.nanmean(meas["offset"]) - np.nanmean(ref["offset"])
