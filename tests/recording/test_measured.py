@@ -160,7 +160,7 @@ def test_a_plain_file_read_in_one_pass_gives_the_row_by_row_readers_tracks(tmp_p
     d = make(tmp_path, meta=meta)
     (d / "observations.csv").write_bytes(data)
     header = data.decode("utf-8-sig").splitlines()[0].split(",")
-    assert measured._plain_tracks(d / "observations.csv", len(header), {c: header.index(c) for c in header if c != "note"},
+    assert measured._plain_tracks(data.decode("utf-8-sig"), len(header), {c: header.index(c) for c in header if c != "note"},
                                   {"trials": 2, "robots": [3, 7, 11]}) is not None  # read in one pass
     ds, ref = measured.load(d), _rowwise(d)
     assert list(ds.tracks) == list(ref.tracks) and len(ds.tracks) == 6
@@ -184,12 +184,11 @@ def test_a_plain_file_read_in_one_pass_gives_the_row_by_row_readers_tracks(tmp_p
     "0,1,-0.1,0,0\n",         # a negative time
     "0,1,0.2,1_0,0\n",        # what float() reads but a CSV reader should not need to
 ])
-def test_any_other_file_goes_to_the_row_by_row_reader(tmp_path, extra):
+def test_any_other_file_goes_to_the_row_by_row_reader(extra):
     """The one-pass reader takes plain files only; every other file is left to the row-by-row
     reader, which names the line of an error or reads a lost sample as a gap."""
-    d = make(tmp_path, csv=CSV + extra)
-    assert measured._plain_tracks(d / "observations.csv", 5, {c: j for j, c in enumerate(CSV.split("\n")[0].split(","))},
+    assert measured._plain_tracks(CSV + extra, 5, {c: j for j, c in enumerate(CSV.split("\n")[0].split(","))},
                                   {"trials": 1, "robots": [0, 1]}) is None
-    assert measured._plain_tracks(make(tmp_path).joinpath("observations.csv"), 5,
+    assert measured._plain_tracks(CSV, 5,
                                   {c: j for j, c in enumerate(CSV.split("\n")[0].split(","))},
                                   {"trials": 1, "robots": [0, 1]}) is not None
