@@ -272,7 +272,7 @@ class _Fitter:
     def __init__(self, cond: Conditions, meas: dict, start: E.TwinModel, gs: GapSettings, fit_base: bool):
         self.cond, self.meas, self.start, self.gs, self.fit_base = cond, meas, start, gs, fit_base
         self.cache = {}  # (names, trials) -> fitted model (names () : the base)
-        self.refs = {}  # (depth, names so far, trials) -> reference simulation of that model
+        self.refs = {}  # (names so far, trials) -> reference simulation of that model
 
     def meas_on(self, trials):
         return E.Summaries({k: v[trials] for k, v in self.meas.items()}, trials)
@@ -304,7 +304,7 @@ class _Fitter:
         depth, j = len(names), len(names) - 1
         # The reference simulation depends only on the model so far (same seed for every
         # candidate at this depth): simulated once per (names so far, trials), not per candidate.
-        ref_key = (depth, names[:j], key[1])
+        ref_key = (names[:j], key[1])
         ref = self.refs.get(ref_key)
         if ref is None:
             ref = self.refs[ref_key] = simulate(self.cond, prefix, M, child_seed(self.gs.seed, "effect_ref", depth, j), trials)
