@@ -1121,8 +1121,9 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     trials, sd tau, through the robot's mean over its trials) plus within-robot noise (variance ``s_w2``), where ``seen`` (K, N) has data. Flagged: the statistic of :func:`detect`
     above its null mean by ``threshold`` (z(alpha / n) times the null's sd). Named: the lower bound at
     ``gain_level`` (bootstrap over robots, as :func:`decide`) of the leave-one-trial-out
-    log-likelihood gain of the effect's pooled per-robot estimates (:func:`effects.partial_pool`,
-    with their predictive variance) over the base (a population level; its spread the
+    log-likelihood gain of the effect's pooled per-robot estimates (:func:`effects.partial_pool`;
+    noise intensities :func:`effects.pool_intensities`, as the effect pools them; with their
+    predictive variance) over the base (a population level; its spread the
     within-robot one, or the whole spread where ``base_absorbs``) is above 0; a drift must also
     beat a robot's mean, its rival, at 95 % (``RIVAL_LEVEL``), where the rival competes: with
     ``rival_threshold`` (the between-robot statistic's flagging threshold, as ``threshold`` is the
@@ -1241,11 +1242,13 @@ def _heldout_gain(x, drift: bool, base_absorbs: bool, noise: tuple | None = None
             mu = np.nanmean(tr, axis=(1, 2))[:, None]
             within = E.within_var(tr)
             spread = np.nanvar(tr, axis=(1, 2)) if base_absorbs else within
-            mean, w = E.partial_pool(tr)
             if noise is not None:
                 level, f, s_w2 = noise
                 base = loglik(y, mu, s_w2 * (1 + 1 / n_all))
-                r_hat = np.maximum(1 + mean / level, 0.0)
+                # the robots' intensities pooled on a log scale, as MotionNoise.fit pools them
+                u, w, _ = E.pool_intensities(np.nanmean(tr, axis=1) + level, n, (1 - f) * s_w2, f * s_w2 / level**2)
+                r_hat = u / level
+                mean = u - level
                 # each robot's own variance at its fitted intensity, as _replicate_spread keeps it
                 # for robots whose simulated spreads differ beyond replicate noise
                 var_i = s_w2 * (1 - f + f * r_hat**2)
@@ -1254,6 +1257,7 @@ def _heldout_gain(x, drift: bool, base_absorbs: bool, noise: tuple | None = None
                 h = E.spread_leverage(w / np.maximum(n, 1), f * s_w2 / level**2)
                 gain += loglik(y, mean, var_i * (1 + h)) - base
                 continue
+            mean, w = E.partial_pool(tr)
             base = loglik(y, mu, spread[:, None] * (1 + 1 / n_all))
             mean_ll = loglik(y, mean, within[:, None] * (1 + w / np.maximum(n, 1)))
             if not drift:
