@@ -161,8 +161,8 @@ def shrink(est, se2, keep_spread: bool = False):
 
 
 #: The grid of :func:`pool_intensities`, in ln of the intensity over the robots' mean: from
-#: e^-9 (a robot all but free of the noise) to e^5 (150x the mean), 0.15 apart.
-_LN_GRID = np.linspace(-9.0, 5.0, 96)
+#: e^-9 (a robot all but free of the noise) to e^5 (150x the mean), at most 0.15 apart.
+_LN_RANGE, _LN_STEP = (-9.0, 5.0), 0.15
 
 
 def pool_intensities(m, n, a: float, b: float, iterations: int = 25):
@@ -189,11 +189,19 @@ def pool_intensities(m, n, a: float, b: float, iterations: int = 25):
     m = np.asarray(m, dtype=float)
     n = np.broadcast_to(np.asarray(n, dtype=float), m.shape)
     ok = np.isfinite(m) & (n > 0)
+    if not (a > 0 or b > 0):  # summaries without any noise: each robot is what it shows
+        u = np.where(ok, np.maximum(m, 0.0), np.nan)
+        return u, ok.astype(float), u
     with np.errstate(all="ignore"):
         mean = np.where(ok, m, 0.0).sum(-1, keepdims=True) / np.maximum(ok.sum(-1, keepdims=True), 1)
         floor = np.sqrt(a / np.maximum(np.where(ok, n, 0.0).max(-1, keepdims=True), 1.0))
     ref = np.maximum(np.maximum(mean, floor), 1e-300)  # (..., 1)
-    lu = _LN_GRID  # ln(u / ref)
+    # ln(u / ref); where a robot's relative error sqrt(b / n) is below the spacing (many, steady
+    # trials), half that error apart (without noise that scales, b = 0: a third of the spacing)
+    n_max = float(np.where(ok, n, 0.0).max()) if ok.any() else 1.0
+    rel = np.sqrt(b / max(n_max, 1.0))
+    step = _LN_STEP if rel >= _LN_STEP else (0.5 * rel if b > 0 else _LN_STEP / 3)
+    lu = np.linspace(*_LN_RANGE, min(int(np.ceil((_LN_RANGE[1] - _LN_RANGE[0]) / max(step, 1e-3))) + 1, 300))
     u = ref[..., None] * np.exp(lu)  # (..., 1, G)
     nn = np.where(ok, n, 1.0)[..., None]
     with np.errstate(all="ignore"):

@@ -469,3 +469,15 @@ def test_pooled_intensities_keep_quiet_robots_quiet_where_linear_pooling_lifts_t
     quiet = u < np.exp(mu)
     lift = (np.log(np.maximum(lin, floor) / u_hat))[quiet]
     assert lift.mean() > 4 * lift.std(ddof=1) / np.sqrt(R)  # robots are independent across datasets
+
+
+def test_pooled_intensities_at_the_edges():
+    """Summaries without any noise (a = b = 0): each robot is its own mean, a negative one read as
+    no noise, a robot without trials has none. With noise, a robot without trials gets the
+    population's prior: weight 0, and the same prediction as any other robot without data."""
+    u, w, keep = E.pool_intensities(np.array([1.0, -0.5, np.nan]), np.array([3, 3, 0]), 0.0, 0.0)
+    assert u[:2] == pytest.approx([1.0, 0.0]) and np.isnan(u[2]) and list(w) == [1.0, 1.0, 0.0]
+    m = np.array([1e-3, 2e-3, 5e-4, 7e-4, 0.0, 0.0])
+    u, w, keep = E.pool_intensities(m, np.array([4, 4, 4, 4, 0, 0]), 1e-8, 1.0)
+    assert w[4] == w[5] == 0.0 and u[4] == u[5] > 0 and keep[4] == keep[5] > 0
+    assert (w[:4] > 0).all() and np.all(np.diff(u[[2, 3, 0, 1]]) > 0)  # the order of the robots' means
