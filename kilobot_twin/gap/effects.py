@@ -172,11 +172,14 @@ def pool_intensities(m, n, a: float, b: float, iterations: int = 25):
     scale: ln u_i ~ N(mu, tau^2) over robots (intensities that differ by factors, as the paper's
     robots differ), each robot's posterior on a grid of ln u, mu and tau by EM (empirical Bayes).
 
-    Returns (u_mean, w, u_keep): the posterior means (a robot's best prediction), the pooling
-    weights w_i = n_i var(u_i | data) / (a + b u_mean_i^2) in [0, 1] (the estimate's error as a
-    share of a free estimate's, as :func:`shrink`'s w), and spread-keeping estimates: the posterior
-    means of ln u_i, their deviations from mu scaled to tau (constrained empirical Bayes, as
-    ``shrink(keep_spread=True)``).
+    Returns (u_mean, w, u_keep, reliability): the posterior means (a robot's best prediction), the
+    pooling weights w_i = n_i var(u_i | data) / (a + b u_mean_i^2) in [0, 1] (the estimate's error
+    as a share of a free estimate's, as :func:`shrink`'s w: what a held-out prediction adds),
+    spread-keeping estimates (the posterior means of ln u_i, their deviations from mu scaled to
+    tau: constrained empirical Bayes, as ``shrink(keep_spread=True)``) and each estimate's
+    reliability on the log scale, 1 - var(ln u_i | data) / tau^2 (for a normal random effect both
+    are tau^2 / (tau^2 + se^2); here a robot's estimate can be barely pooled, w near 1, and still
+    err by much of the robots' spread).
 
     Why not :func:`partial_pool`: it pulls every robot towards the robots' arithmetic mean by a
     weight from the pooled within-robot variance, which the noisiest robot makes. With
@@ -191,7 +194,7 @@ def pool_intensities(m, n, a: float, b: float, iterations: int = 25):
     ok = np.isfinite(m) & (n > 0)
     if not (a > 0 or b > 0):  # summaries without any noise: each robot is what it shows
         u = np.where(ok, np.maximum(m, 0.0), np.nan)
-        return u, ok.astype(float), u
+        return u, ok.astype(float), u, ok.astype(float)
     with np.errstate(all="ignore"):
         mean = np.where(ok, m, 0.0).sum(-1, keepdims=True) / np.maximum(ok.sum(-1, keepdims=True), 1)
         floor = np.sqrt(a / np.maximum(np.where(ok, n, 0.0).max(-1, keepdims=True), 1.0))
@@ -250,7 +253,9 @@ def pool_intensities(m, n, a: float, b: float, iterations: int = 25):
         sd = np.sqrt(np.maximum((e1**2).mean(-1, keepdims=True) - e1.mean(-1, keepdims=True) ** 2, 0.0))
         grow = np.where(sd > 0, tau / np.where(sd > 0, sd, 1.0), 1.0)
     u_keep = ref * np.exp(mu + grow * (e1 - mu))
-    return u_mean, w, u_keep
+    # How much of the robots' spread on the log scale each estimate holds: 1 - var(ln u_i | data) / tau^2
+    reliability = np.where(ok, np.clip(1.0 - ((post * lu**2).sum(-1) - e1**2) / tau**2, 0.0, 1.0), 0.0)
+    return u_mean, w, u_keep, reliability
 
 
 def _est_var_bias(ref, model, resim=None):
@@ -811,9 +816,11 @@ class MotionNoise(Effect):
         a = float(np.nanmean(within_var(quiet)))
         b = max(float(np.nanmean(within_var(ref["diffusion"]))) - a, 0.0) / level**2
         x = meas["diffusion"] - c
-        u, w, u_keep = pool_intensities(_nanmean(x, axis=0), np.isfinite(x).sum(0), a, b)
+        u, w, u_keep, reliability = pool_intensities(_nanmean(x, axis=0), np.isfinite(x).sum(0), a, b)
         m = model.with_traits(sigma_omega=np.sqrt(u / slope)).pooled("diffusion", w)
-        m = m.with_individual({"sigma_omega": w}, sigma_omega=np.sqrt(u_keep / slope))
+        # (the expected r from the log scale's reliability: a weight near 1, an estimate barely
+        # pooled, says nothing of how far the robots' spread exceeds its error)
+        m = m.with_individual({"sigma_omega": reliability}, sigma_omega=np.sqrt(u_keep / slope))
         # The trial-to-trial bias spread keeps only what the new noise does not already explain.
         return m.with_traits(bias_trial_sd=_trial_spread(within_var(_bias(meas["turn_rate"], m)), ref, m, resim, noise))
 

@@ -1246,7 +1246,7 @@ def _heldout_gain(x, drift: bool, base_absorbs: bool, noise: tuple | None = None
                 level, f, s_w2 = noise
                 base = loglik(y, mu, s_w2 * (1 + 1 / n_all))
                 # the robots' intensities pooled on a log scale, as MotionNoise.fit pools them
-                u, w, _ = E.pool_intensities(np.nanmean(tr, axis=1) + level, n, (1 - f) * s_w2, f * s_w2 / level**2)
+                u, w, _, _ = E.pool_intensities(np.nanmean(tr, axis=1) + level, n, (1 - f) * s_w2, f * s_w2 / level**2)
                 r_hat = u / level
                 mean = u - level
                 # each robot's own variance at its fitted intensity, as _replicate_spread keeps it

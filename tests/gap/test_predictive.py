@@ -435,7 +435,7 @@ def test_pooled_intensities_are_calibrated_posteriors_against_theory():
     R, N, mu, tau, a = 10, 1000, np.log(1e-3), 1.2, 1e-7
     for K, b in ((3, 1.44), (12, 0.8)):
         u, d = _intensity_data(np.random.default_rng(21), R, N, K, mu, tau, a, b, trial="gamma")
-        u_hat, w, u_keep = E.pool_intensities(d.mean(1), np.full((R, N), K), a, b)
+        u_hat, w, u_keep, reliability = E.pool_intensities(d.mean(1), np.full((R, N), K), a, b)
         assert u_hat.shape == w.shape == u_keep.shape == (R, N)
         assert ((w >= 0) & (w <= 1)).all()
         rel = (u - u_hat) / u_hat
@@ -443,6 +443,12 @@ def test_pooled_intensities_are_calibrated_posteriors_against_theory():
     sd_keep = np.log(u_keep).std(axis=1, ddof=1)
     assert sd_keep.mean() == pytest.approx(tau, abs=4 * tau / np.sqrt(2 * (N - 1) * R))
     assert np.log(u_keep).mean() == pytest.approx(mu, abs=4 * tau / np.sqrt(N * R))
+    # The reliability says how closely the estimates follow the robots: their correlation with the
+    # true ln u is sqrt(mean reliability) (var E[ln u | data] / tau^2 = 1 - E var(ln u | data) /
+    # tau^2); 4 sds of the mean over datasets allowed (from the sample). The pooling weights are no
+    # such measure: sqrt(mean w) is 0.98 here.
+    r = np.array([np.corrcoef(np.log(u[i]), np.log(u_keep[i]))[0, 1] for i in range(R)])
+    assert r.mean() == pytest.approx(np.sqrt(reliability.mean()), abs=4 * r.std(ddof=1) / np.sqrt(R))
 
 
 def test_pooled_intensities_keep_quiet_robots_quiet_where_linear_pooling_lifts_them():
@@ -475,9 +481,9 @@ def test_pooled_intensities_at_the_edges():
     """Summaries without any noise (a = b = 0): each robot is its own mean, a negative one read as
     no noise, a robot without trials has none. With noise, a robot without trials gets the
     population's prior: weight 0, and the same prediction as any other robot without data."""
-    u, w, keep = E.pool_intensities(np.array([1.0, -0.5, np.nan]), np.array([3, 3, 0]), 0.0, 0.0)
+    u, w, keep, _ = E.pool_intensities(np.array([1.0, -0.5, np.nan]), np.array([3, 3, 0]), 0.0, 0.0)
     assert u[:2] == pytest.approx([1.0, 0.0]) and np.isnan(u[2]) and list(w) == [1.0, 1.0, 0.0]
     m = np.array([1e-3, 2e-3, 5e-4, 7e-4, 0.0, 0.0])
-    u, w, keep = E.pool_intensities(m, np.array([4, 4, 4, 4, 0, 0]), 1e-8, 1.0)
+    u, w, keep, rel = E.pool_intensities(m, np.array([4, 4, 4, 4, 0, 0]), 1e-8, 1.0)
     assert w[4] == w[5] == 0.0 and u[4] == u[5] > 0 and keep[4] == keep[5] > 0
     assert (w[:4] > 0).all() and np.all(np.diff(u[[2, 3, 0, 1]]) > 0)  # the order of the robots' means
