@@ -203,8 +203,8 @@ def pool_intensities(m, n, a: float, b: float, iterations: int = 25):
     # trials), half that error apart (without noise that scales, b = 0: a third of the spacing)
     n_max = float(np.where(ok, n, 0.0).max()) if ok.any() else 1.0
     rel = np.sqrt(b / max(n_max, 1.0))
-    step = _LN_STEP if rel >= _LN_STEP else (0.5 * rel if b > 0 else _LN_STEP / 3)
-    lu = np.linspace(*_LN_RANGE, min(int(np.ceil((_LN_RANGE[1] - _LN_RANGE[0]) / max(step, 1e-3))) + 1, 300))
+    wanted = _LN_STEP if rel >= _LN_STEP else (0.5 * rel if b > 0 else _LN_STEP / 3)
+    lu = np.linspace(*_LN_RANGE, min(int(np.ceil((_LN_RANGE[1] - _LN_RANGE[0]) / max(wanted, 1e-3))) + 1, 300))
     u = ref[..., None] * np.exp(lu)  # (..., 1, G)
     nn = np.where(ok, n, 1.0)[..., None]
     with np.errstate(all="ignore"):
@@ -808,9 +808,9 @@ class MotionNoise(Effect):
         quiet = resim(model.with_traits(sigma_omega=np.zeros(n)))["diffusion"]
         c = np.nanmean(quiet)
         level = np.nanmean(ref["diffusion"]) - c  # the heading noise's part at the population's intensity
-        slope = level / np.mean(s2)
         if not level > 0:
             return model
+        slope = level / np.mean(s2)
         # A trial's summary varies by a + b u^2 about a robot's noise part u: a without heading
         # noise, a + b level^2 at the population's intensity (both simulated).
         a = float(np.nanmean(within_var(quiet)))

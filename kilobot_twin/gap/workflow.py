@@ -1245,16 +1245,17 @@ def _heldout_gain(x, drift: bool, base_absorbs: bool, noise: tuple | None = None
             if noise is not None:
                 level, f, s_w2 = noise
                 base = loglik(y, mu, s_w2 * (1 + 1 / n_all))
+                # a trial varies by a + b u^2 about a robot's noise part u = level r
+                a, b = (1 - f) * s_w2, f * s_w2 / level**2
                 # the robots' intensities pooled on a log scale, as MotionNoise.fit pools them
-                u, w, _, _ = E.pool_intensities(np.nanmean(tr, axis=1) + level, n, (1 - f) * s_w2, f * s_w2 / level**2)
+                u, w, _, _ = E.pool_intensities(np.nanmean(tr, axis=1) + level, n, a, b)
                 r_hat = u / level
                 mean = u - level
                 # each robot's own variance at its fitted intensity, as _replicate_spread keeps it
                 # for robots whose simulated spreads differ beyond replicate noise
                 var_i = s_w2 * (1 - f + f * r_hat**2)
-                # the level's error carried through the spread it sets, as in _heldout: of the
-                # variance a + b L^2 (L = level r), b = f s_w2 / level^2 scales
-                h = E.spread_leverage(w / np.maximum(n, 1), f * s_w2 / level**2)
+                # the level's error carried through the spread it sets, as in _heldout
+                h = E.spread_leverage(w / np.maximum(n, 1), b)
                 gain += loglik(y, mean, var_i * (1 + h)) - base
                 continue
             mean, w = E.partial_pool(tr)
