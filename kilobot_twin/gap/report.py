@@ -17,6 +17,33 @@ def _fmt(v) -> str:
         return " / ".join(_fmt(x) for x in v)
     return str(v)
 
+def _where(s: dict) -> list:
+    """Lines of report.md that say where the gap is: each summary's parts, base -> final model
+    (``gap_by_part``); and, when no test flagged anything yet the gap before is clearly above 0,
+    which part holds most of it."""
+    from .workflow import GAP_PARTS
+
+    by = s.get("gap_by_part")
+    if not by:
+        return []
+    lines = ["Where the gap is: each summary's held-out excess deviance, by part, base -> updated model "
+             "(0 = as good as the model's noise; the gap is their mean):", "",
+             "| summary | " + " | ".join(GAP_PARTS.values()) + " |", "|---" * (len(GAP_PARTS) + 1) + "|"]
+    for c, parts in by.items():
+        lines.append(f"| {c} | " + " | ".join(f"{parts[p][0]:.2f} -> {parts[p][1]:.2f}" for p in GAP_PARTS) + " |")
+    lo = s["gap_before"]["ci95"][0]
+    if not s["disagreements"] and lo is not None and lo > 0:
+        c, p = max(((c, p) for c in by for p in GAP_PARTS), key=lambda cp: by[cp[0]][cp[1]][0])
+        lines += ["", f"No test flagged anything, yet the base misses the held-out trials by more than its noise "
+                  f"(gap {s['gap_before']['value']:.2f}, 95 % CI {lo:.2f} .. {s['gap_before']['ci95'][1]:.2f}), "
+                  f"most in {c}, {GAP_PARTS[p]} ({by[c][p][0]:.2f})"
+                  + (": the swarm as a whole shifts from trial to trial by more than the model's noise makes it. "
+                     f"None of the tests ({', '.join(s.get('tests', [])) or 'none'}) is of each trial's level, and "
+                     "no effect of the library shifts a trial as a whole." if p == "level" else
+                     f"; no test ({', '.join(s.get('tests', [])) or 'none'}) crossed its threshold.")]
+    return lines + [""]
+
+
 def write_markdown(out: Path, report: dict, residuals: list) -> Path:
     """report.md and one figure per dataset; ``residuals[j]``: per-robot held-out residuals of the
     base and the final model of dataset j (``before``, ``after``)."""
@@ -35,8 +62,9 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
                   f"{s['gap_shrink']['before']:.2f} -> {s['gap_shrink']['after']:.2f}): {100 * s['gap_shrink']['value']:.0f} % "
                   + (f"(95 % CI {100 * s['gap_shrink']['ci95'][0]:.0f} .. {100 * s['gap_shrink']['ci95'][1]:.0f} %)"
                      if s['gap_shrink']['ci95'][0] is not None else "(95 % CI unbounded: the gap before is not clearly above 0)"),
-                  f"- metric: {s['gap_before']['metric']}; computed on held-out trials (leave-one-trial-out)", "",
-                  "| round | signal | robots | trials | z | p |", "|---|---|---|---|---|---|"]
+                  f"- metric: {s['gap_before']['metric']}; computed on held-out trials (leave-one-trial-out)", ""]
+        lines += _where(s)
+        lines += ["| round | signal | robots | trials | z | p |", "|---|---|---|---|---|---|"]
         for d in s["disagreements"]:
             lines.append(f"| {d['round']} | {d['signal']} | {d['robots'][:8]} | {d['trials']} | {d['z']:.1f} | {d['p_value']:.2g} |")
         level = s["steps"][0]["score_vs_current"]["level"] if s["steps"] else 0.9

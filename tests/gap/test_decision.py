@@ -339,6 +339,62 @@ def test_the_gap_s_bootstrap_is_centred_on_its_value_where_the_level_is_far_off(
     assert lo < value < hi
 
 
+def test_where_the_gap_is_by_hand():
+    """The gap by summary and part (the report's "where the gap is"), against hand-computed
+    deviances: every robot 2 predictive sds above a base that predicts 0, in a trial of 4 robots
+    whose level sd is 1 (a mean over 4 robots: 0.5), and a final model that predicts each value.
+    Per track, on the final model's spread (1) and on the base's own (2 on the second summary):
+    z = 2 and 1, deviance 4 and 1; per trial level: z = 2 / 0.5 = 4, deviance 16 (the edge of the
+    quadratic part), and on a level 5 sds off 2 x 4 x 5 - 16 = 24. Each less a right model's mean
+    (scipy's Huber loss integrated against the normal, to 1e-10); after naming, each part is that mean less
+    itself. The parts average to the gap."""
+    from scipy.integrate import quad
+    from scipy.special import huber
+
+    from kilobot_twin.gap.workflow import GAP_PARTS, _gap, gap_by_part
+
+    right = 2 * quad(lambda t: 2 * huber(4.0, t) * norm.pdf(t), 0, np.inf, epsabs=1e-13)[0]
+    K, n = 2, 4
+    meas = {"a": np.full((K, n), 2.0), "b": np.full((K, n), 2.5)}
+    base = {"a": {"mean": np.zeros((K, n)), "sd": np.ones((K, n)), "sd_level": np.ones(K)},
+            "b": {"mean": np.zeros((K, n)), "sd": np.full((K, n), 2.5), "sd_level": np.ones(K)}}
+    final = {c: {"mean": meas[c].copy(), "sd": np.full((K, n), 1.25 if c == "b" else 1.0), "sd_level": np.ones(K)}
+             for c in meas}
+    by = gap_by_part(meas, base, final, ["a", "b"])
+    assert set(by) == {"a", "b"} and all(set(v) == set(GAP_PARTS) for v in by.values())
+    # summary a: track on the final model's spread z = 2; own (base sd 1) z = 2; level z = 2 / 0.5 = 4
+    np.testing.assert_allclose(by["a"]["track"], [4 - right, -right], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(by["a"]["own"], [4 - right, -right], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(by["a"]["level"], [16 - right, -right], rtol=0, atol=1e-9)
+    # summary b: track on the final model's spread 1.25: z = 2; own (base sd 2.5): z = 1; level 2.5 / 0.5 = 5
+    np.testing.assert_allclose(by["b"]["track"], [4 - right, -right], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(by["b"]["own"], [1 - right, -right], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(by["b"]["level"], [24 - right, -right], rtol=0, atol=1e-9)
+    # with every value observed, the gap is the mean of the cells
+    mean = np.mean([by[c][p][0] for c in by for p in GAP_PARTS])
+    assert _gap(meas, base, final, ["a", "b"]) == pytest.approx(mean, abs=1e-9)
+
+
+def test_the_report_says_where_an_unflagged_gap_is():
+    """When no test flagged anything yet the gap before is clearly above 0, report.md names the
+    summary and part that hold most of it (a per-trial level: the swarm shifting as a whole,
+    which no test is of); with a flagged signal, or a gap whose interval reaches 0, it says
+    nothing of the kind."""
+    from kilobot_twin.gap.report import _where
+
+    s = {"gap_by_part": {"gain": {"track": [0.1, 0.1], "own": [0.1, 0.1], "level": [21.3, 21.3]},
+                         "offset": {"track": [-0.2, -0.2], "own": [-0.2, -0.2], "level": [17.4, 17.4]}},
+         "gap_before": {"value": 6.4, "ci95": [6.1, 6.7]}, "disagreements": [],
+         "tests": ["gain:between_robots", "offset:between_robots"]}
+    text = "\n".join(_where(s))
+    assert "| gain | 0.10 -> 0.10 | 0.10 -> 0.10 | 21.30 -> 21.30 |" in text
+    assert "most in gain, per trial level (21.30)" in text and "(gain:between_robots, offset:between_robots)" in text
+    s["gap_by_part"]["offset"]["track"] = [30.0, 0.0]
+    assert "most in offset, per track, final model's spread (30.00); no test" in "\n".join(_where(s))
+    for change in ({"disagreements": [{"signal": "gain:between_robots"}]}, {"gap_before": {"value": 0.3, "ci95": [-0.1, 0.7]}}):
+        assert "No test flagged" not in "\n".join(_where({**s, **change}))
+
+
 def _heading_f_by_lstsq(v, h):
     """log F of speed on heading within robots, by full and reduced least-squares fits: a dummy
     per robot, plus cos and sin of the heading."""

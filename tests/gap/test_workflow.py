@@ -52,6 +52,13 @@ def test_heading_bias_named_recovered_and_gap_shrinks(tmp_path):
     assert doc["datasets"][0]["estimates"]["heading_bias"]["expected_r"] >= 0.95
     assert "heading_bias: expected r" in (tmp_path / "out" / "report.md").read_text()
     assert (tmp_path / "out" / "report.md").is_file() and (tmp_path / "out" / "gap_0.png").is_file()
+    # Where the gap is: the turn rates' per-track part, and the report's table row says so.
+    by = doc["datasets"][0]["gap_by_part"]
+    assert set(by) == {"turn_rate", "speed", "diffusion"}
+    before, after = by["turn_rate"]["track"]
+    assert before > 1 and after < 0.2 * before and before == max(v[0] for parts in by.values() for v in parts.values())
+    row = next(r for r in (tmp_path / "out" / "report.md").read_text().splitlines() if r.startswith("| turn_rate |"))
+    assert f"{before:.2f} -> {after:.2f}" in row
 
 
 def test_no_hidden_effect_names_nothing(tmp_path):
