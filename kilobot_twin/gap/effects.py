@@ -103,6 +103,40 @@ def within_var(b):
     return float(v) if v.ndim == 0 else v
 
 
+def two_way(x, iterations: int = 200):
+    """The additive two-way layout of summaries x (..., K, N) with missing values (NaN): each
+    robot's level a_i and each trial's shift b_k (…, K, 1), centred over the trials that hold a
+    value, with x_ki ~ a_i + b_k by least squares, by alternating means (backfitting) to
+    convergence. Complete, it is one pass: b_k the trial's mean less the grand mean, a_i the
+    robot's mean. With robots missing from trials a trial's plain mean depends on who was in
+    it: the independent world's blink 3058 (7 robots x 3 trials, clock rates 2 % apart, robot 6
+    absent from trial 1 and robots 1 and 2 from trial 2) put trial 2 0.005 above trial 1, 4 sds
+    of a robot's trial-to-trial spread, so trial-centred values scattered 4x as much as the
+    robots' trials do, each robot's rate was pooled a third of the way towards the swarm's, and
+    a clock drift 2.1x its stated minimum detectable size scored a held-out gain of 1 (-25 ..
+    25) and went unnamed."""
+    x = np.asarray(x, dtype=float)
+    ok = np.isfinite(x)
+    z = np.where(ok, x, 0.0)
+    n_i, n_k = ok.sum(-2), ok.sum(-1, keepdims=True)
+    has_k = n_k > 0
+    shift = np.zeros(x.shape[:-1] + (1,))
+    scale = float(np.nanmax(np.abs(x))) if ok.any() else 0.0
+    with np.errstate(all="ignore"):
+        for _ in range(iterations):
+            level = np.where(n_i > 0, (np.where(ok, z - shift, 0.0)).sum(-2) / np.maximum(n_i, 1), np.nan)
+            new = np.where(has_k, np.where(ok, z - np.nan_to_num(level)[..., None, :], 0.0).sum(-1, keepdims=True)
+                           / np.maximum(n_k, 1), 0.0)
+            centre = (new * has_k).sum(-2, keepdims=True) / np.maximum(has_k.sum(-2, keepdims=True), 1)
+            new = np.where(has_k, new - centre, 0.0)
+            done = np.max(np.abs(new - shift)) <= 1e-13 * max(scale, 1e-300)
+            shift = new
+            if done:
+                break
+        level = np.where(n_i > 0, (np.where(ok, z - shift, 0.0)).sum(-2) / np.maximum(n_i, 1), np.nan)
+    return level, np.where(has_k, shift, np.nan)
+
+
 def partial_pool(x, s2=None, keep_spread: bool = False):
     """Each robot's mean over its trials, partially pooled towards the population's (the robots
     are draws from a population, as in the paper: empirical Bayes, the best linear unbiased
@@ -123,13 +157,12 @@ def partial_pool(x, s2=None, keep_spread: bool = False):
         n = np.isfinite(x).sum(-2)
         if s2 is None:
             # What a trial shifts for every robot alike (the floor, the battery charge) moves no
-            # robot against the others: robots are compared on trial-centred values, and s^2 is
+            # robot against the others: robots are compared on trial-adjusted values, and s^2 is
             # what is left of a robot's trials beyond its level and the trials' shifts (the
             # residual of the two-way layout, (K' - 1)(N - 1) degrees of freedom when complete).
-            shift = np.nanmean(x, axis=-1, keepdims=True)
-            xc = x - shift
-            m = np.nanmean(xc, axis=-2) + np.nanmean(shift, axis=(-2, -1))[..., None]
-            dev = xc - np.nanmean(xc, axis=-2, keepdims=True)
+            level, shift = two_way(x)
+            m = level + np.nanmean(shift, axis=(-2, -1))[..., None]
+            dev = x - level[..., None, :] - shift
             trials = (np.isfinite(x).sum(-1) > 0).sum(-1)
             dof = (n - 1).clip(0).sum(-1) - (trials - 1).clip(0)
             s2 = np.nansum(dev**2, axis=(-2, -1)) / np.maximum(dof, 1)
