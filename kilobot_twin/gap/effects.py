@@ -110,11 +110,11 @@ def two_way(x, iterations: int = 200):
     convergence. Complete, it is one pass: b_k the trial's mean less the grand mean, a_i the
     robot's mean. With robots missing from trials a trial's plain mean depends on who was in
     it: the independent world's blink 3058 (7 robots x 3 trials, clock rates 2 % apart, robot 6
-    absent from trial 1 and robots 1 and 2 from trial 2) put trial 2 0.005 above trial 1, 4 sds
-    of a robot's trial-to-trial spread, so trial-centred values scattered 4x as much as the
-    robots' trials do, each robot's rate was pooled a third of the way towards the swarm's, and
-    a clock drift 2.1x its stated minimum detectable size scored a held-out gain of 1 (-25 ..
-    25) and went unnamed."""
+    absent from trial 1 and robots 1 and 2 from trial 2) put trial 2 0.005 above trial 1, 6 sds
+    of a robot's trial-to-trial spread, so trial-centred values left a within-robot variance
+    11-72x the two-way fit's (by fold), the lone robots' rates were pooled up to a quarter of
+    the way towards the swarm's, and a clock drift 2.1x its stated minimum detectable size
+    scored a held-out gain of 1 (-25 .. 25) and went unnamed."""
     x = np.asarray(x, dtype=float)
     ok = np.isfinite(x)
     z = np.where(ok, x, 0.0)

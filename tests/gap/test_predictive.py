@@ -158,7 +158,7 @@ def test_robots_missing_from_trials_neither_inflate_the_noise_nor_get_pooled_for
     datasets, 4 sds of the mean), so every weight stays near tau^2 / (tau^2 + s^2) > 0.99, and
     the pooled means err as the least-squares fit does (robot 6 against robot 0: 0.86 s^2 from
     the design; 4 sds of the mean square). Trial-centring by the trials' plain means (who was in a trial moves its mean) had
-    made s^2 tens of times too large and pulled the lone robots a third of the way."""
+    made s^2 11-72x too large there and pulled the lone robots up to a quarter of the way."""
     rng = np.random.default_rng(22)
     tau, s, shift_sd, K, N, R = 0.01, 0.001, 0.003, 3, 7, 300
     missing = [(1, 6), (2, 1), (2, 2)]
