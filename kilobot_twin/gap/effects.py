@@ -127,8 +127,8 @@ def two_way(x):
     S = z.sum(-2)  # (..., N)
     C = np.einsum("...ki,...li,...i->...kl", o, o, inv_n)
     r = z.sum(-1) - np.einsum("...ki,...i->...k", o, S * inv_n)
-    M = -C + np.einsum("...k,kl->...kl", n_k, np.eye(x.shape[-2]))
-    M = M + seen[..., :, None] * seen[..., None, :] + np.einsum("...k,kl->...kl", 1.0 - seen, np.eye(x.shape[-2]))
+    # the normal equations, the centring (seen trials' shifts sum to 0) and b_k = 0 for unseen trials
+    M = (n_k + 1.0 - seen)[..., :, None] * np.eye(x.shape[-2]) - C + seen[..., :, None] * seen[..., None, :]
     b = np.einsum("...kl,...l->...k", np.linalg.pinv(M), r)
     b = np.where(seen > 0, b - (b * seen).sum(-1, keepdims=True) / np.maximum(seen.sum(-1, keepdims=True), 1), 0.0)
     with np.errstate(all="ignore"):
@@ -159,9 +159,8 @@ def partial_pool(x, s2=None, keep_spread: bool = False):
             # robot against the others: robots are compared on trial-adjusted values, and s^2 is
             # what is left of a robot's trials beyond its level and the trials' shifts (the
             # residual of the two-way layout, (K' - 1)(N - 1) degrees of freedom when complete).
-            level, shift = two_way(x)
-            m = level + np.nanmean(shift, axis=(-2, -1))[..., None]
-            dev = x - level[..., None, :] - shift
+            m, shift = two_way(x)  # the shifts are centred: a level is the robot's at the average trial
+            dev = x - m[..., None, :] - shift
             trials = (np.isfinite(x).sum(-1) > 0).sum(-1)
             dof = (n - 1).clip(0).sum(-1) - (trials - 1).clip(0)
             s2 = np.nansum(dev**2, axis=(-2, -1)) / np.maximum(dof, 1)

@@ -34,13 +34,14 @@ def _where(s: dict) -> list:
     lo = s["gap_before"]["ci95"][0]
     if not s["disagreements"] and lo is not None and lo > 0:
         c, p = max(((c, p) for c in by for p in GAP_PARTS), key=lambda cp: by[cp[0]][cp[1]][0])
+        tests = ", ".join(s.get("tests", [])) or "none"
         lines += ["", f"No test flagged anything, yet the base misses the held-out trials by more than its noise "
                   f"(gap {s['gap_before']['value']:.2f}, 95 % CI {lo:.2f} .. {s['gap_before']['ci95'][1]:.2f}), "
                   f"most in {c}, {GAP_PARTS[p]} ({by[c][p][0]:.2f})"
                   + (": the swarm as a whole shifts from trial to trial by more than the model's noise makes it. "
-                     f"None of the tests ({', '.join(s.get('tests', [])) or 'none'}) is of each trial's level, and "
+                     f"None of the tests ({tests}) is of each trial's level, and "
                      "no effect of the library shifts a trial as a whole." if p == "level" else
-                     f"; no test ({', '.join(s.get('tests', [])) or 'none'}) crossed its threshold.")]
+                     f"; no test ({tests}) crossed its threshold.")]
     return lines + [""]
 
 
