@@ -17,7 +17,8 @@ Start gate: the world waits until ``robots`` robots are on the graph and every n
 ``wait_topics`` (default ``pose,light,led,clock,robots``; ``robots`` is a batched swarm's cloud; a
 node that subscribes to a swarm's ``bundle`` counts as subscribed to its robots' data topics) and
 to every ``/analysis/`` topic on the graph, so that a recording holds every message,
-then ``settle_s`` more. Then:
+then ``settle_s`` more. A start that has not come says what it waits for, as a warning every
+``gate_report_s`` seconds (default 10; 0: never). Then:
 
 - ``lockstep``: publish /clock for step k once every robot has published its pose for step
   ``k - window_steps`` (a robot of a batched ``swarm`` process counts as published when its
@@ -79,6 +80,7 @@ class WorldNode(Node):
         self.recorder_lag_steps = params.integer(self, "recorder_lag_steps", 60, minimum=1)
         self.ack_timeout_s = params.number(self, "ack_timeout_s", 5.0, minimum=0.0, strict=True)
         self.clock_period_s = params.number(self, "clock_period_s", 1.0, minimum=0.0)
+        self.gate_report_s = params.number(self, "gate_report_s", 10.0, minimum=0.0)
         self.await_recorder = "recorder" in self.wait_for_nodes and self.mode == "lockstep"
         self.scenario = self._scenario(name, path, duration)
         self.n_steps = self.scenario.n_steps
@@ -112,6 +114,7 @@ class WorldNode(Node):
         self.start_wall_ns = 0
         self.end_wall_ns = 0
         self._gate_since = None
+        self._created = self._gate_reported = time.monotonic()
         self._graph_timer = self.create_timer(0.1, self._poll_graph)
         self._clock_timer = None
         self._field_timer = None
@@ -160,21 +163,32 @@ class WorldNode(Node):
                 base = m.group(1)
                 self.swarms[base] = None
                 self.create_subscription(String, topic, lambda msg, base=base: self._on_members(base, msg), qos.LATCHED)
-        ready = (len(self.robots) >= self.n_robots and all(v is not None for v in self.swarms.values())
-                 and self._subscribers_ready())
-        if not ready:
-            self._gate_since = None
-            return
+        waiting = self._gate_waits_for()
         now = time.monotonic()
+        if waiting:
+            self._gate_since = None
+            if self.gate_report_s > 0 and now - self._gate_reported >= self.gate_report_s:
+                self._gate_reported = now  # a start that never comes says why, every gate_report_s
+                self.get_logger().warning(f"not started after {now - self._created:.0f} s: waiting for {waiting}")
+            return
         if self._gate_since is None:
             self._gate_since = now
         if now - self._gate_since >= self.settle_s:
             self._graph_timer.cancel()
             self._start()
 
-    def _subscribers_ready(self) -> bool:
+    def _gate_waits_for(self) -> str:
+        """What the start still waits for, in words ("" once everything is there)."""
+        if len(self.robots) < self.n_robots:
+            return f"robots: {len(self.robots)} of {self.n_robots} on the graph"
+        unheard = sorted(base for base, ids in self.swarms.items() if ids is None)
+        if unheard:
+            return f"the member list of {', '.join(unheard)}"
+        return self._subscribers_missing()
+
+    def _subscribers_missing(self) -> str:
         if not self.wait_for_nodes:
-            return True
+            return ""
         topics_ = [topic[: -len("pose")] + suffix for topic in self.robots.values() for suffix in self.wait_topics
                    if suffix in DATA_TOPICS]
         topics_ += [f"{base}/{suffix}" for base in self.swarms for suffix in self.wait_topics if suffix in SWARM_TOPICS]
@@ -193,9 +207,10 @@ class WorldNode(Node):
             if all(n in names for n in awaited):
                 continue  # (no graph query per robot topic when a bundle covers it)
             names = names | {i.node_name for i in self.get_subscriptions_info_by_topic(topic)}
-            if not all(n in names for n in awaited):
-                return False
-        return True
+            missing = [n for n in awaited if n not in names]
+            if missing:
+                return f"{', '.join(missing)} to subscribe to {topic}"
+        return ""
 
     def _on_members(self, base: str, msg: String) -> None:
         if self.swarms.get(base) is not None or self.pacer.step >= 0:

@@ -1,0 +1,47 @@
+"""The world's start gate says what it waits for: in words, and on the real process's log."""
+
+import os
+import subprocess
+import sys
+import time
+
+from kilobot_twin.nodes.swarm import SwarmNode
+from kilobot_twin.nodes.world import WorldNode
+
+from .graph import Graph, overrides
+from .test_lockstep import Collector
+
+N = 3
+
+
+def test_the_gate_names_what_is_missing_in_the_order_it_comes():
+    with Graph() as g:
+        world = g.add(WorldNode(context=g.context, parameter_overrides=overrides(
+            scenario="phototaxis", duration_s=1.0, robots=N, wait_for_nodes="collector", wait_topics="pose,led",
+            settle_s=0.2, linger_s=0.0)))
+        g.spin_until(lambda: False, 0.5)
+        assert world._gate_waits_for() == f"robots: 0 of {N} on the graph"
+        swarm = g.add(SwarmNode(context=g.context, parameter_overrides=overrides(robots=N, batched=False)))
+        assert g.spin_until(lambda: swarm.world_ready.done(), 10)
+        swarm.create_robots(g.executor)
+        assert g.spin_until(lambda: len(world.robots) == N, 10)
+        # Robots there, nobody recording them: the first robot topic without its subscriber.
+        assert g.spin_until(lambda: world._gate_waits_for().startswith("collector to subscribe to /kilobot_"), 10), \
+            world._gate_waits_for()
+        assert world.pacer.step < 0  # not started
+        g.add(Collector(g.context, N))
+        assert g.spin_until(lambda: world._gate_waits_for() == "", 10), world._gate_waits_for()
+        assert g.spin_until(lambda: world.finished.done(), 30)
+
+
+def test_a_world_that_never_starts_says_why_on_its_log():
+    # The node as `ros2 run` starts it, alone: no robot ever comes.
+    cmd = [sys.executable, "-m", "kilobot_twin.nodes.world", "--ros-args", "-p", f"robots:={N}",
+           "-p", "gate_report_s:=0.3"]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+    time.sleep(3.0)
+    p.terminate()
+    out, _ = p.communicate(timeout=20)
+    warned = [ln for ln in out.splitlines() if "not started after" in ln]
+    assert warned and all(f"waiting for robots: 0 of {N} on the graph" in ln for ln in warned), out
+    assert "WARN" in warned[0]
