@@ -37,13 +37,20 @@ class Child:
     returncode: int | None = None
     stopped_by_us: bool = False
 
-    def last_error_line(self) -> str:
+    def _lines(self) -> list[str]:
         try:
-            lines = [ln for ln in self.log.read_text(errors="replace").splitlines() if ln.strip()]
+            return [ln for ln in self.log.read_text(errors="replace").splitlines() if ln.strip()]
         except OSError:
-            return ""
+            return []
+
+    def last_error_line(self) -> str:
+        lines = self._lines()
         err = [ln for ln in lines if "error" in ln.lower() or "Traceback" in ln or "ERROR" in ln]
         return (err or lines or [""])[-1]
+
+    def last_line(self, containing: str) -> str:
+        """The log's last line that contains ``containing`` ("" if none)."""
+        return next((ln for ln in reversed(self._lines()) if containing in ln), "")
 
 
 @dataclass
@@ -217,7 +224,7 @@ def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 2
                     echo(report.problems[-1])
                 break
             if time.monotonic() - t0 > timeout_s:
-                report.problems.append(f"timed out after {timeout_s:.0f} s (world not done; see {logs})")
+                report.problems.append(timeout_problem(timeout_s, w, logs))
                 break
             time.sleep(0.05)
         time.sleep(0.3)  # let the last messages reach the recorder
@@ -232,6 +239,13 @@ def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 2
         report.problems.append(f"recorder did not stop cleanly (code {rec.returncode}); try `kilobot-twin bag repair {bag}`")
     _fill_report(report, swarm_stats, world_stats, dt_s)
     return report
+
+
+def timeout_problem(timeout_s: float, world: Child, logs: Path) -> str:
+    """The line a run that timed out reports; with what a world that never started waited for."""
+    said = world.last_line("waiting for")
+    return (f"timed out after {timeout_s:.0f} s (world not done" + (f": {said.split(']: ', 1)[-1]}" if said else "")
+            + f"; see {logs})")
 
 
 def _stop(c: Child, timeout_s: float) -> None:

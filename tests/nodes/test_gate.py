@@ -7,6 +7,7 @@ import time
 
 from kilobot_twin.nodes.swarm import SwarmNode
 from kilobot_twin.nodes.world import WorldNode
+from kilobot_twin.ros.launcher import Child, timeout_problem
 
 from .graph import Graph, overrides
 from .test_lockstep import Collector
@@ -34,14 +35,23 @@ def test_the_gate_names_what_is_missing_in_the_order_it_comes():
         assert g.spin_until(lambda: world.finished.done(), 30)
 
 
-def test_a_world_that_never_starts_says_why_on_its_log():
+def test_a_world_that_never_starts_says_why_on_its_log_and_in_the_runs_report(tmp_path):
     # The node as `ros2 run` starts it, alone: no robot ever comes.
     cmd = [sys.executable, "-m", "kilobot_twin.nodes.world", "--ros-args", "-p", f"robots:={N}",
            "-p", "gate_report_s:=0.3"]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+    log = tmp_path / "world.log"
+    with open(log, "w") as fh:
+        p = subprocess.Popen(cmd, stdout=fh, stderr=subprocess.STDOUT, env=dict(os.environ, PYTHONUNBUFFERED="1"))
     time.sleep(3.0)
     p.terminate()
-    out, _ = p.communicate(timeout=20)
+    p.wait(20)
+    out = log.read_text()
     warned = [ln for ln in out.splitlines() if "not started after" in ln]
-    assert warned and all(f"waiting for robots: 0 of {N} on the graph" in ln for ln in warned), out
+    assert len(warned) >= 2 and all(f"waiting for robots: 0 of {N} on the graph" in ln for ln in warned), out
     assert "WARN" in warned[0]
+    # `kilobot-twin run`'s report of a timeout carries the world's last word on it.
+    line = timeout_problem(64.0, Child("world", p, log), tmp_path)
+    assert line.startswith("timed out after 64 s (world not done: not started after ") and \
+        line.endswith(f"s: waiting for robots: 0 of {N} on the graph; see {tmp_path})"), line
+    assert timeout_problem(64.0, Child("world", p, tmp_path / "none.log"), tmp_path) == \
+        f"timed out after 64 s (world not done; see {tmp_path})"
