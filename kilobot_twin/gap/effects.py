@@ -547,6 +547,30 @@ _PROBE_ROW = {"sigma_omega": 0, "speed_trial_sd": 1, "sigma_v": 2, "bias_trial_s
 PROBE = {"sigma_omega": 0.02, "sigma_v": 0.001, "speed_trial_sd": 0.03, "bias_trial_sd": 0.02, "sensor_noise": 8.0}
 
 
+def bounded_combination(d: float, var_d: float, t: float, var_t: float) -> float:
+    """A variance s read twice: ``d`` reads s (variance ``var_d``), ``t`` reads s plus a part
+    that is >= 0 (variance ``var_t``). The normal likelihood's maximum with that part >= 0: d
+    where t >= d (the part is t - d), else the precision-weighted mean of the two (the part at
+    its bound, 0). Non-finite or zero variances leave the other reading's weight whole.
+
+    The heading noise is read by the diffusion (the tracks' sideways wander, which heavy tracking
+    noise swamps) and by the turn rates' within-robot variance (which the trial-to-trial bias
+    spread can only raise). A bound at the turn rates plus two of their sampling sds, taken at
+    the bound, let the twin's trial turn rates vary 1.9-2.4x as much as the data's; the between-
+    robot F ratio then stayed flagged after the right heading bias, which was never named (synth
+    3042: 6.8 mm of tracking noise, a heading noise of 0.0030 fitted at 0.0060, a heading bias
+    10.6x its minimum detectable size).
+    """
+    if not t < d:
+        return d
+    wd, wt = (1.0 / v if np.isfinite(v) and v > 0 else (np.inf if v == 0 else 0.0) for v in (var_d, var_t))
+    if wd == wt:  # both exact, or neither known
+        return 0.5 * (d + t)
+    if np.isinf(wd) or np.isinf(wt):
+        return d if np.isinf(wd) else t
+    return (wd * d + wt * t) / (wd + wt)
+
+
 def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     """Population noise levels from within-robot statistics: heading-noise intensity
     sigma_omega, speed-noise intensity sigma_v (within a trial) and the relative trial-to-trial
@@ -560,16 +584,16 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     noise that is absent from the data comes out 0 rather than breaking the fit.
 
     The fourth statistic, the pooled within-robot variance of trial turn rates (its simulated
-    value the median over replicates, its scatter a robust sd: :func:`_replicate_centre`), bounds the
-    heading noise from above: under heavy tracking noise the diffusion scatters by more than the
+    value the median over replicates, its scatter a robust sd: :func:`_replicate_centre`), reads
+    the heading noise too: under heavy tracking noise the diffusion scatters by more than the
     heading noise it measures (4 mm of tracking noise on 2 s chords), while a robot's turn rate,
     a slope over the whole trial, still varies from trial to trial by little more than the
     heading noise makes it, and the trial-to-trial bias spread can only add to that. When the
-    heading noise found exceeds what the data's turn rates allow (their variance plus two of its
-    sampling sds, less what the speed noises add), it is set to that bound and the speed noises
-    are solved again from their own two rows. (The bound is not a row of the
-    least-squares solve: weighted by their sampling sds, rows whose intercept another world does
-    not share, such as a speed diffusion 7 sd below the twin's noiseless one, would dominate it.)
+    turn rates read less heading noise than the diffusion (less what the speed noises add), the
+    two readings are combined as :func:`bounded_combination` says and the speed noises are
+    solved again from their own two rows. (It is not a row of the least-squares solve: weighted
+    by their sampling sds, rows whose intercept another world does not share, such as a speed
+    diffusion 7 sd below the twin's noiseless one, would dominate it.)
     """
     from scipy.optimize import nnls
 
@@ -607,23 +631,24 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     A3, t3 = A[:3, :3], target[:3]
     w = 1.0 / np.maximum(np.abs(A3).max(axis=1), 1e-30)
     var = nnls(A3 * w[:, None], t3 * w)[0]
-    # The turn rates' bound on the heading noise: their variance plus two of its sampling sds
-    # (a variance scatters in proportion to its level: the sd is taken without heading noise,
-    # then again at the bound so found, one more simulation), less what the speed noises add.
+    # The turn rates' reading of the heading noise (row 3, less what the speed noises add): it
+    # is sigma_omega^2 plus the trial-to-trial bias spread's part, so where it reads less than
+    # the diffusion did the spread is 0 and the two readings are combined by their precisions
+    # (:func:`bounded_combination`), each from its scatter over replicates at the turn rates'
+    # level (one more simulation).
     if A[3, 0] > 0:
-        def bound(sd):
-            return max((target[3] + 2.0 * sd - A[3, 1] * var[1] - A[3, 2] * var[2]) / A[3, 0], 0.0)
-
-        with np.errstate(all="ignore"):
-            b = bound(float(robust_sd(reps[0][:, 3])))
-            at = model.with_traits(sigma_omega=np.full(n, np.sqrt(b)), sigma_v=np.full(n, np.sqrt(var[1])),
-                                   speed_trial_sd=float(np.sqrt(var[2])), bias_trial_sd=np.zeros(n))
-            sd = float(robust_sd(_noise_stats(resim(at))[:, 3]))
-        b = bound(sd) if np.isfinite(sd) else np.inf
-        if var[0] > b:
+        t_est = max((target[3] - A[3, 1] * var[1] - A[3, 2] * var[2]) / A[3, 0], 0.0)
+        if var[0] > t_est:
+            with np.errstate(all="ignore"):
+                at = model.with_traits(sigma_omega=np.full(n, np.sqrt(t_est)), sigma_v=np.full(n, np.sqrt(var[1])),
+                                       speed_trial_sd=float(np.sqrt(var[2])), bias_trial_sd=np.zeros(n))
+                st = _noise_stats(resim(at))
+                v_d = (float(robust_sd(st[:, 0])) / A[0, 0]) ** 2 if A[0, 0] > 0 else np.inf
+                v_t = (float(robust_sd(st[:, 3])) / A[3, 0]) ** 2
+            s2 = bounded_combination(float(var[0]), v_d, t_est, v_t)
             # The speed noises again from their own rows (the diffusion's excess is not theirs).
-            rest = nnls(A3[1:, 1:] * w[1:, None], (t3[1:] - A3[1:, 0] * b) * w[1:])[0]
-            var = np.array([b, *rest])
+            rest = nnls(A3[1:, 1:] * w[1:, None], (t3[1:] - A3[1:, 0] * s2) * w[1:])[0]
+            var = np.array([s2, *rest])
     # The trial speeds' within-robot variance (row 1) is what every speed test and prediction
     # rests on (the F ratio's within-robot mean square, a held-out trial's spread); the speed
     # diffusion (row 2) only splits it between the two speed noises. When the split asks for
