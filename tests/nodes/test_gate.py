@@ -55,3 +55,35 @@ def test_a_world_that_never_starts_says_why_on_its_log_and_in_the_runs_report(tm
         line.endswith(f"s: waiting for robots: 0 of {N} on the graph; see {tmp_path})"), line
     assert timeout_problem(64.0, Child("world", p, tmp_path / "none.log"), tmp_path) == \
         f"timed out after 64 s (world not done; see {tmp_path})"
+
+
+def test_a_member_list_that_never_arrives_is_asked_for_again(monkeypatch):
+    """A batched swarm's member list is latched; now and then the world's subscription, made once
+    the topic is on the graph, never delivered it (the world waited 60 s, the recorder of the same
+    run had it). Here the world's first subscription drops what it hears: the world subscribes
+    again after MEMBERS_RETRY_S, hears the list from the new reader, and starts."""
+    import kilobot_twin.nodes.world as W
+
+    monkeypatch.setattr(W, "MEMBERS_RETRY_S", 1.0)
+    with Graph() as g:
+        world = g.add(WorldNode(context=g.context, parameter_overrides=overrides(
+            scenario="random_walk", duration_s=1.0, robots=N, settle_s=0.2, linger_s=0.0, gate_report_s=0.0)))
+        heard, made = [], []
+        real_on, real_sub = world._on_members, world._subscribe_members
+
+        def on_members(base, msg):
+            heard.append(len(made))
+            if len(made) > 1:  # the first reader's deliveries are lost
+                real_on(base, msg)
+
+        def subscribe(base, topic):
+            made.append(topic)
+            real_sub(base, topic)
+
+        monkeypatch.setattr(world, "_on_members", on_members)
+        monkeypatch.setattr(world, "_subscribe_members", subscribe)
+        swarm = g.add(SwarmNode(context=g.context, parameter_overrides=overrides(robots=N, batched=True)))
+        assert g.spin_until(lambda: swarm.world_ready.done(), 10)
+        swarm.create_robots(g.executor)
+        assert g.spin_until(lambda: world.finished.done(), 30), world._gate_waits_for()
+    assert made == ["/swarm/members", "/swarm/members"] and heard and heard[-1] == 2
