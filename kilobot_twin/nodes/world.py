@@ -221,7 +221,7 @@ class WorldNode(Node):
     def _resubscribe_unheard_members(self) -> None:
         """A swarm's member list is latched, and now and then a subscription made once the topic
         is on the graph never delivers it (the recorder had it, the world waited 60 s for it: seen
-        twice in the test suite, 1 run in about 15). A subscription that has heard nothing after
+        in two full runs of the test suite). A subscription that has heard nothing after
         ``MEMBERS_RETRY_S`` is made again: a new reader is sent the latched message anew."""
         now = time.monotonic()
         for base, (sub, topic, since) in list(self._members_subs.items()):
