@@ -236,6 +236,41 @@ def test_a_null_without_spread_is_read_to_the_statistics_resolution():
         assert g["p_value"] == pytest.approx(p_hand, rel=1e-3, abs=1e-300) and g["flagged"] is flagged
 
 
+def test_a_between_robot_F_raised_by_the_within_mean_square_alone_is_not_flagged_once_means_are_fitted():
+    """Robots' means fitted (12 robots x 4 trials, means 1 + 0.05 u_i, the same in data and
+    model), the data's trials scattering about them with a within-robot mean square of exactly
+    w^2, the model's with 2.6 w^2 (synth pair 3049's ratio). The between-robot mean square is
+    K var(means) = 0.01, 400x w^2, so by hand the data's log F is above the model's replicates by
+    ln 2.6 - E[ln(chi^2_36 / 36)] ~ 0.956 - 0.028 = 0.928, in the replicates' sd sqrt(2 / 36) =
+    0.236: z = 3.93, flagged (one test: p < 0.05) when the model fits no per-robot means. With the
+    means fitted the between-robot mean square decides as well: the data's, K var(means), is the
+    replicates' less the 2.6 w^2 their noise adds (ln ratio -0.003, z -0.05 at the statistic's
+    0.05 resolution), so it is not flagged; robots whose means spread 1.2x the model's (ln 1.44 =
+    0.365 above, the replicates' sd 2 sqrt(2.6 w^2 / (K S)) = 0.03 with S the sum of squared mean
+    deviations, below the resolution: z = 7.2) are flagged by both. Without the rule the fitted
+    speed spread of synth pair 3049 resolved nothing."""
+    K, N, M = 4, 12, 400
+    rng = np.random.default_rng(5)
+    mu = 1.0 + 0.05 * rng.standard_normal(N)
+    w2 = 1e-5
+    e = rng.standard_normal((K, N))
+    e -= e.mean(axis=0)
+    e *= np.sqrt(w2 / ((e**2).sum() / (K * N - N)))  # within-robot mean square exactly w^2
+    null = {"toggle_rate": mu + np.sqrt(2.6 * w2) * rng.standard_normal((M, K, N))}
+
+    def found(x, own):
+        return {f["signal"]: f for f in detect("blink", {"toggle_rate": x}, null, K, 0.05, own)}["toggle_rate:between_robots"]
+
+    g = found(mu + e, ())
+    assert g["z"] == pytest.approx(0.928 / np.sqrt(2 / 36), abs=0.4) and g["flagged"]
+    assert "z_between_ms" not in g
+    g = found(mu + e, ("toggle_rate",))
+    assert g["z"] == pytest.approx(3.93, abs=0.4) and abs(g["z_between_ms"]) < 1.0 and not g["flagged"]
+    wider = mu.mean() + 1.2 * (mu - mu.mean())
+    g = found(wider + e, ("toggle_rate",))
+    assert g["z_between_ms"] == pytest.approx(np.log(1.44) / 0.05, abs=0.5) and g["flagged"]
+
+
 def test_shrink_interval_inverts_the_bootstrap_and_covers_at_its_level():
     """The shrink 1 - after / before. Where every resampled gap before is above 0 its interval is
     the percentile interval of the resampled ratios (order statistics k = 2.5 % of 4,000 from each
