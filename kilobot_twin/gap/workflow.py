@@ -268,8 +268,9 @@ def detect(kind, meas, null, trials, alpha, own_means=()):
     within-robot mean square, and where the data's trials vary less from trial to trial than the
     model's, the data's F stands high by that factor however well the means agree (synth pair
     3049: speed factors 27x their detectable size, fitted; the data's trial speeds varied 0.39x as
-    much as the model's, whose tracking floor alone, fitted at the truth, is above the data's at
-    its 0.1 % quantile; z 4.0, so the right speed spread resolved nothing and was not named).
+    much as the model's, whose floor from tracking alone, fitted at the truth, has its 5 % quantile
+    at 0.60x its median: the data's was about 3 log-sds low; the F stood at z 4.0, so the right
+    speed spread resolved nothing and was not named).
     Robots that differ beyond the model also spread their means more than the model's do, so
     there the signal is flagged only if the between-robot mean square, with no within-robot
     yardstick, stands above its null as well (both tests at the family's level, the larger p
