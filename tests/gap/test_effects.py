@@ -371,6 +371,21 @@ def test_bounded_combination_against_theory():
     assert abs(err.mean()) < 4 * err.std() / np.sqrt(n) and np.mean(err == d - s) > 0.999
 
 
+def _synth_as_evaluated(tmp_path, hidden: str, seed: int):
+    """A motion dataset as `eval_gap.py --generator synth --random-nuisance` writes it (its
+    ``_write``): (folder, truth)."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("eval_gap", Path(__file__).parents[2] / "benchmarks" / "eval_gap.py")
+    ev = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(ev)
+    ds = tmp_path / "motion"
+    truth = ev._write({"kind": "motion", "hidden": hidden, "seed": seed, "generator": "synth", "random_nuisance": True},
+                      ds, 1.0)
+    return ds, truth
+
+
 def test_a_heading_bias_under_tracking_noise_that_swamps_the_wander_is_named(tmp_path):
     """Synth 3042 as `eval_gap.py --generator synth --random-nuisance` draws it: 12 robots x 4
     trials, 6.8 mm of tracking noise, a heading noise of 0.0030 rad/sqrt(s) (correlated over 0.84
@@ -381,17 +396,9 @@ def test_a_heading_bias_under_tracking_noise_that_swamps_the_wander_is_named(tmp
     With the readings combined the heading bias is named, and the noise is the truth's within 4
     sds of the turn rates' reading (a within-robot variance over 12 x 3 degrees of freedom:
     relative sd sqrt(2 / 36) = 0.24 in sigma^2, 0.12 in sigma)."""
-    import importlib.util
-    from pathlib import Path
-
     from kilobot_twin.gap.workflow import GapSettings, run_gap
 
-    spec = importlib.util.spec_from_file_location("eval_gap", Path(__file__).parents[2] / "benchmarks" / "eval_gap.py")
-    ev = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(ev)
-    ds = tmp_path / "motion"
-    truth = ev._write({"kind": "motion", "hidden": "heading_bias", "seed": 3042, "generator": "synth",
-                       "random_nuisance": True}, ds, 1.0)
+    ds, truth = _synth_as_evaluated(tmp_path, "heading_bias", 3042)
     assert truth["observation"]["tracking_noise_m"] == pytest.approx(0.006773, abs=1e-6)
     rep = run_gap([str(ds)], tmp_path / "out", gs=GapSettings(seed=3042), log=lambda *a: None)
     assert rep["named_effects"] == ["heading_bias"] and not rep["unexplained"]
@@ -409,17 +416,9 @@ def test_a_speed_spread_whose_trials_vary_less_than_the_model_says_is_named(tmp_
     speed spread resolved nothing: heading bias was named alone, `unexplained`. Once a model fits
     robots' own speeds, the signal also needs their between-robot mean square above the null,
     and both effects are named."""
-    import importlib.util
-    from pathlib import Path
-
     from kilobot_twin.gap.workflow import GapSettings, run_gap
 
-    spec = importlib.util.spec_from_file_location("eval_gap", Path(__file__).parents[2] / "benchmarks" / "eval_gap.py")
-    ev = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(ev)
-    ds = tmp_path / "motion"
-    truth = ev._write({"kind": "motion", "hidden": "heading_bias,speed_heterogeneity", "seed": 3049, "generator": "synth",
-                       "random_nuisance": True}, ds, 1.0)
+    ds, truth = _synth_as_evaluated(tmp_path, "heading_bias,speed_heterogeneity", 3049)
     assert truth["observation"]["tracking_correlated_m"] == pytest.approx(0.002031, abs=1e-6)
     assert truth["nuisance"]["sigma_v"] == 0.0
     rep = run_gap([str(ds)], tmp_path / "out", gs=GapSettings(seed=3049), log=lambda *a: None)
