@@ -271,6 +271,44 @@ def test_a_between_robot_F_raised_by_the_within_mean_square_alone_is_not_flagged
     assert g["z_between_ms"] == pytest.approx(np.log(1.44) / 0.05, abs=0.5) and g["flagged"]
 
 
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the constant summaries beside the turn rates
+def test_a_trend_F_raised_by_the_residual_mean_square_alone_is_not_flagged_once_lines_are_fitted():
+    """Robots' lines over 5 trials fitted (12 robots, slopes 0.05 u_i, the same in data and
+    model), the data's trials about them with a residual mean square of exactly w^2 (12 x 3
+    degrees of freedom), the model's with 2.1 w^2 (the independent world's drift 3070: 0.48x). The
+    trends' mean square, sum(slopes^2) x 10 / 12, is thousands of times w^2, so by hand the data's log F is
+    above the replicates' by ln 2.1 - E[ln(chi^2_36 / 36)] ~ 0.742 + 0.028 = 0.770, in their sd
+    sqrt(2 / 36) = 0.236: z = 3.27, flagged when the model fits no lines. With lines fitted the
+    trends' mean square decides as well: the data's is the replicates' less what their noise adds
+    (z about 0 at the 0.05 resolution), not flagged; slopes 1.2x the model's (ln 1.44 = 0.365
+    above: z = 7.3) are flagged by both. Without the rule the independent world's drift 3070, 9.7x
+    its detectable size, resolved nothing."""
+    K, N, M = 5, 12, 400
+    rng = np.random.default_rng(6)
+    level, slope = 0.1 * rng.standard_normal(N), 0.05 * rng.standard_normal(N)
+    t = np.arange(K, dtype=float)[:, None] - 2.0
+    w2 = 1e-5
+    e = rng.standard_normal((K, N))
+    b = (t * e).sum(0) / (t**2).sum()
+    e = e - e.mean(0) - b * t  # residuals about each robot's line
+    e *= np.sqrt(w2 / ((e**2).sum() / (N * (K - 2))))
+    null = {"turn_rate": level + slope * t + np.sqrt(2.1 * w2) * rng.standard_normal((M, K, N)),
+            "speed": np.ones((M, K, N)), "diffusion": np.ones((M, K, N)), "heading": np.zeros((M, K, N))}
+
+    def found(sl, own):
+        meas = {"turn_rate": level + sl * t + e, "speed": np.ones((K, N)), "diffusion": np.ones((K, N)),
+                "heading": np.zeros((K, N))}
+        return {f["signal"]: f for f in detect("motion", meas, null, K, 0.05, (), own)}["turn_rate:trial_trend"]
+
+    g = found(slope, ())
+    assert g["z"] == pytest.approx(0.770 / np.sqrt(2 / 36), abs=0.4) and g["flagged"]
+    assert "z_trend_ms" not in g
+    g = found(slope, ("turn_rate",))
+    assert g["z"] == pytest.approx(3.27, abs=0.4) and abs(g["z_trend_ms"]) < 1.0 and not g["flagged"]
+    g = found(1.2 * slope, ("turn_rate",))
+    assert g["z_trend_ms"] == pytest.approx(np.log(1.44) / 0.05, abs=0.5) and g["flagged"]
+
+
 def test_shrink_interval_inverts_the_bootstrap_and_covers_at_its_level():
     """The shrink 1 - after / before. Where every resampled gap before is above 0 its interval is
     the percentile interval of the resampled ratios (order statistics k = 2.5 % of 4,000 from each
