@@ -144,17 +144,6 @@ def _log_scale(x):
         return np.arcsinh(x / (2.0 * np.where(m > 0, m, 1.0)))
 
 
-#: Summaries that read a noise intensity: their between-robot statistics are taken on
-#: :func:`_log_scale`.
-_NOISE_SUMMARIES = ("diffusion",)
-
-
-def _own_means(library: dict, names, ways=("mean", "line")) -> tuple:
-    """Summaries whose per-robot means (``ways=("line",)``: lines over trials) a model with the
-    effects ``names`` fits (see :func:`detect`)."""
-    return tuple(sorted({c for n in names for c, how in library[n].predicts.items() if how in ways}))
-
-
 def _f_noise(x):
     """F of robots over trials for a noise summary: :func:`_f_between` on :func:`_log_scale`."""
     return _f_between(_log_scale(x))
@@ -225,7 +214,7 @@ def statistics(kind: str, s: dict, trials: int) -> dict:
             out["turn_rate:trial_trend"] = (_f_trend(s["turn_rate"]), 1)
         out["speed:between_robots"] = (_f_between(s["speed"]), 1)
         out["diffusion:level"] = (np.nanmean(s["diffusion"], axis=(-2, -1)), 2)
-        out["diffusion:between_robots"] = (_f_noise(s["diffusion"]), 1)
+        out["diffusion:between_robots"] = (_f_noise(s["diffusion"]), 1)  # as _ALONE reads it
         out["speed:heading_dependence"] = (_heading_dependence(s["speed"], s["heading"]), 1)
     elif kind == "light_sweep":
         out["gain:between_robots"] = (_f_between(s["gain"], _resolution(s, "gain")), 1)
@@ -275,12 +264,20 @@ def _p_value(obs, null, sided):
     return float(z), float(p)
 
 
-def detect(kind, meas, null, trials, alpha, own_means=(), own_lines=()):
+#: A signal's second test where the model's effects already account for it (see :func:`detect`):
+#: the F ratio's numerator alone, on the F's scale (the diffusion's on :func:`_log_scale`, as
+#: :func:`_f_noise` reads it), and the key its z is reported under.
+_ALONE = {"between_robots": (lambda comp, x: _ms_between(_log_scale(x) if comp == "diffusion" else x), "z_between_ms"),
+          "trial_trend": (lambda comp, x: _ms_trend(x), "z_trend_ms")}
+
+
+def detect(kind, meas, null, trials, alpha, fitted=()):
     """Flag statistics whose calibrated p < alpha / n; localise each to robots and trials.
 
-    ``own_means``: summaries whose per-robot means the model fits (a named effect predicts them
-    per robot). There a between-robot F ratio that stands far above its null can come from the
-    within-robot mean square alone: with robots' means fitted, the F is their spread over the
+    ``fitted``: the model's effects (:class:`effects.Effect`). Where one of them accounts for a
+    signal (``Effect.explains``: it fits robots' own means, or lines, of that summary), a
+    between-robot F ratio that stands far above its null can come from the within-robot mean
+    square alone: with robots' means fitted, the F is their spread over the
     within-robot mean square, and where the data's trials vary less from trial to trial than the
     model's, the data's F stands high by that factor however well the means agree (synth pair
     3049: speed factors 27x their detectable size, fitted; the data's trial speeds varied 0.39x as
@@ -292,10 +289,9 @@ def detect(kind, meas, null, trials, alpha, own_means=(), own_lines=()):
     yardstick, stands above its null as well (both tests at the family's level, the larger p
     counts). Where the model fits no per-robot means (the base), the F alone decides: its
     within-robot yardstick keeps a wrong noise level from reading as robots that differ.
-    ``own_lines``: summaries whose per-robot lines over trials the model fits; their trend F is
-    read the same way, with the trends' mean square alone as the second test (independent world
-    3070: drifts 9.7x their detectable size, the trend F at z 19.3, the fitted drift resolved
-    nothing)."""
+    A trend F where the model fits robots' own lines is read the same way, with the trends' mean
+    square alone as the second test (independent world 3070: drifts 9.7x their detectable size,
+    the trend F at z 4.5 with the drift fitted, which resolved nothing)."""
     obs = statistics(kind, meas, trials)
     sim = statistics(kind, null, trials)
     found = []
@@ -303,13 +299,10 @@ def detect(kind, meas, null, trials, alpha, own_means=(), own_lines=()):
         z, p = _p_value(float(value), np.asarray(sim[name][0]), sided)
         comp, _, stat = name.partition(":")
         f = {"signal": name, "statistic": float(value), "z": z, "p_value": p}
-        if stat == "between_robots" and comp in own_means:
-            scale = _log_scale if comp in _NOISE_SUMMARIES else (lambda a: a)
-            zb, pb = _p_value(float(_ms_between(scale(meas[comp]))), np.asarray(_ms_between(scale(null[comp]))), 1)
-            f.update(z_between_ms=zb, p_value=max(p, pb))
-        elif stat == "trial_trend" and comp in own_lines:
-            zb, pb = _p_value(float(_ms_trend(meas[comp])), np.asarray(_ms_trend(null[comp])), 1)
-            f.update(z_trend_ms=zb, p_value=max(p, pb))
+        if stat in _ALONE and any(e.explains(name) for e in fitted):
+            alone, key = _ALONE[stat]
+            za, pa = _p_value(float(alone(comp, meas[comp])), np.asarray(alone(comp, null[comp])), 1)
+            f.update({key: za, "p_value": max(p, pa)})
         f["robots"], f["trials"] = _localise(meas.get(comp), null.get(comp), kind)
         found.append(f)
     for f, flag in zip(found, flagged_by_family([f["p_value"] for f in found], alpha)):
@@ -869,8 +862,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         null = nulls.pop((names, round_), None)
         if null is None:
             null = simulate(cond, model, gs.m_null, child_seed(gs.seed, "null", round_))
-        found = detect(kind, meas, null, cond.trials, gs.alpha, _own_means(gs.library, names),
-                       _own_means(gs.library, names, ("line",)))
+        found = detect(kind, meas, null, cond.trials, gs.alpha, [gs.library[n] for n in names])
         if round_ == 0:
             tests = [f["signal"] for f in found]
             mde = minimum_detectable(kind, meas, null, cond.trials, gs.alpha, seed=child_seed(gs.seed, "power"), base=model,
@@ -880,7 +872,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         for f in flagged:
             disagreements.append({"round": round_, "signal": f["signal"], "robots": [int(cond.robot_ids[i]) for i in f["robots"]],
                                   "trials": f["trials"], "statistic": f["statistic"], "z": f["z"], "p_value": f["p_value"],
-                                  **{k: f[k] for k in ("z_between_ms", "z_trend_ms") if k in f}})
+                                  **{key: f[key] for _, key in _ALONE.values() if key in f}})
         log(f"[{kind}] round {round_}: model {list(names) or ['base']}; flagged "
             f"{[f['signal'] for f in flagged] or 'nothing'}")
         if not flagged or round_ == gs.max_steps:
@@ -912,8 +904,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
             next_null = simulate(cond, cand_model, gs.m_null, child_seed(gs.seed, "null", round_ + 1))
             nulls[(names + (name,), round_ + 1)] = next_null  # the next round's null, if it is named
             after = {f["signal"]: f for f in detect(kind, meas, next_null, cond.trials, gs.alpha,
-                                                    _own_means(gs.library, names + (name,)),
-                                                    _own_means(gs.library, names + (name,), ("line",)))}
+                                                    [gs.library[n] for n in names + (name,)])}
             return [f["signal"] for f in flagged if not after[f["signal"]]["flagged"] and gs.library[name].explains(f["signal"])]
 
         d = decide(scores, resolves, rng, gs.boot, gs.library, gs.gain_level)

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
+from kilobot_twin.gap.effects import LIBRARY
 from kilobot_twin.gap.workflow import decide, detect, flagged_by_family
 
 N = 12
@@ -261,13 +262,15 @@ def test_a_between_robot_F_raised_by_the_within_mean_square_alone_is_not_flagged
     def found(x, own):
         return {f["signal"]: f for f in detect("blink", {"toggle_rate": x}, null, K, 0.05, own)}["toggle_rate:between_robots"]
 
+    own = (LIBRARY["clock_drift"],)  # fits robots' own clock rates
+
     g = found(mu + e, ())
     assert g["z"] == pytest.approx(0.928 / np.sqrt(2 / 36), abs=0.4) and g["flagged"]
     assert "z_between_ms" not in g
-    g = found(mu + e, ("toggle_rate",))
+    g = found(mu + e, own)
     assert g["z"] == pytest.approx(3.93, abs=0.4) and abs(g["z_between_ms"]) < 1.0 and not g["flagged"]
     wider = mu.mean() + 1.2 * (mu - mu.mean())
-    g = found(wider + e, ("toggle_rate",))
+    g = found(wider + e, own)
     assert g["z_between_ms"] == pytest.approx(np.log(1.44) / 0.05, abs=0.5) and g["flagged"]
 
 
@@ -298,14 +301,15 @@ def test_a_trend_F_raised_by_the_residual_mean_square_alone_is_not_flagged_once_
     def found(sl, own):
         meas = {"turn_rate": level + sl * t + e, "speed": np.ones((K, N)), "diffusion": np.ones((K, N)),
                 "heading": np.zeros((K, N))}
-        return {f["signal"]: f for f in detect("motion", meas, null, K, 0.05, (), own)}["turn_rate:trial_trend"]
+        return {f["signal"]: f for f in detect("motion", meas, null, K, 0.05, own)}["turn_rate:trial_trend"]
 
+    lines = (LIBRARY["bias_drift"],)  # fits robots' own lines of turn rate over trials
     g = found(slope, ())
     assert g["z"] == pytest.approx(0.770 / np.sqrt(2 / 36), abs=0.4) and g["flagged"]
     assert "z_trend_ms" not in g
-    g = found(slope, ("turn_rate",))
+    g = found(slope, lines)
     assert g["z"] == pytest.approx(3.27, abs=0.4) and abs(g["z_trend_ms"]) < 1.0 and not g["flagged"]
-    g = found(1.2 * slope, ("turn_rate",))
+    g = found(1.2 * slope, lines)
     assert g["z_trend_ms"] == pytest.approx(np.log(1.44) / 0.05, abs=0.5) and g["flagged"]
 
 
