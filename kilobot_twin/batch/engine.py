@@ -76,9 +76,9 @@ def simulate(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tria
     last = flat(beh.get("last", 0.0))
     last_d = flat(beh.get("last_d", 0.0))
     held = flat(beh.get("a", 0.0))
-    bias, clock = flat(st.bias), flat(st.clock)
-    speed, wheel_noise, sigma_v, gain, offset, noise = (
-        flat(tr[k]) for k in ("speed_factor", "wheel_noise", "sigma_v", "sensor_gain", "sensor_offset", "sensor_noise"))
+    bias, clock, offset = flat(st.bias), flat(st.clock), flat(st.offset)
+    speed, wheel_noise, sigma_v, gain, noise = (
+        flat(tr[k]) for k in ("speed_factor", "wheel_noise", "sigma_v", "sensor_gain", "sensor_noise"))
     # The turn-rate noise's coefficients from the core's own function (the same bits), and its state.
     turn_a, turn_c, turn_g = (flat(a) for a in kinematics.turn_noise_coefficients(tr["sigma_omega"], tr["heading_noise_tau"],
                                                                                   scenario.dt_s))

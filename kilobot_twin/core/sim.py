@@ -42,6 +42,7 @@ class SimState:
     adjacency: np.ndarray | None = None  # (R, N, N) Kuramoto neighbours
     traits: dict = field(default_factory=dict)  # trait arrays broadcast to (1, N)
     turn_noise: np.ndarray | None = None  # state of the coloured turn-rate noise (unit variance)
+    offset: np.ndarray | None = None  # effective sensor offset this trial (trait + trial jitter)
 
     @property
     def shape(self):
@@ -106,7 +107,7 @@ def init_state(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tr
     keys = {p: rng.robot_keys(seed, runs, ids, p) for p in (rng.MOTION, rng.WHEEL, rng.SENSOR, rng.BEHAVIOR, rng.TRIAL)}
     tr = {k: v.reshape(1, N) for k, v in traits.values.items()}
 
-    bias, clock = _trial_rates(tr, keys[rng.TRIAL], trials)
+    bias, clock, offset = _trial_rates(tr, keys[rng.TRIAL], trials)
 
     if poses is None:
         x, y, theta = start_poses(scenario, seed, runs, ids)
@@ -118,7 +119,7 @@ def init_state(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tr
         motion=np.zeros((R, N), dtype=np.int8), led=np.full((R, N), LED_OFF, dtype=np.int8),
         reading=np.zeros((R, N)), behavior={}, keys=keys, runs=runs, robot_ids=ids, trials=trials, traits=tr,
         # The turn-rate noise starts in its stationary state (N(0, 1)); white noise ignores it.
-        turn_noise=rng.normal_pair(keys[rng.TRIAL], 2)[0],
+        turn_noise=rng.normal_pair(keys[rng.TRIAL], 2)[0], offset=offset,
     )
     reading0 = _sense(scenario, st, 0.0, 0) if scenario.behavior.needs_light else np.zeros((R, N))
     st.reading = reading0
@@ -134,22 +135,25 @@ def init_state(scenario: Scenario, traits: SwarmTraits, seed: int, runs=None, tr
 
 
 def _trial_rates(tr: dict, trial_keys, trials: np.ndarray):
-    """Effective heading bias (trait + drift x trial + trial-to-trial jitter, Eq. 6) and clock rate
-    of each (run, robot) in this trial, both (R, N); the jitters are keyed by (seed, run, robot)."""
+    """Effective heading bias (trait + drift x trial + trial-to-trial jitter, Eq. 6), clock rate
+    and sensor offset of each (run, robot) in this trial, each (R, N); the jitters are keyed by
+    (seed, run, robot). (The offset's jitter is the second normal of the pair whose first starts
+    the turn-rate noise: drawn where nothing else was, so no other stream moves.)"""
     jitter, clock_jitter = rng.normal_pair(trial_keys, 0)
     bias = tr["heading_bias"] + tr["bias_drift"] * trials.reshape(-1, 1) + tr["bias_trial_sd"] * jitter
     clock = tr["clock_rate"] * np.maximum(1.0 + tr["clock_trial_sd"] * clock_jitter, 0.05)
-    return bias, clock
+    offset = tr["sensor_offset"] + tr["sensor_offset_trial_sd"] * rng.normal_pair(trial_keys, 2)[1]
+    return bias, clock, offset
 
 
 def set_traits(st: SimState, traits: SwarmTraits) -> None:
     """Give the robots of ``st`` new traits (same robots, same order) from the next step on.
 
-    The trial's effective bias and clock rate are derived again with the same keyed jitters,
+    The trial's effective bias, clock rate and sensor offset are derived again with the same keyed jitters,
     so the result equals a state initialised with these traits, up to the steps already taken.
     """
     st.traits = {k: v.reshape(1, -1) for k, v in traits.values.items()}
-    st.bias, st.clock = _trial_rates(st.traits, st.keys[rng.TRIAL], st.trials)
+    st.bias, st.clock, st.offset = _trial_rates(st.traits, st.keys[rng.TRIAL], st.trials)
 
 
 def restart_behavior(st: SimState, scenario: Scenario) -> None:
@@ -161,7 +165,7 @@ def restart_behavior(st: SimState, scenario: Scenario) -> None:
 def _sense(scenario: Scenario, st: SimState, t_s: float, counter: int):
     intensity = scenario.light.intensity(st.x, st.y, t_s)
     tr = st.traits
-    return light.sense(intensity, tr["sensor_gain"], tr["sensor_offset"], tr["sensor_noise"],
+    return light.sense(intensity, tr["sensor_gain"], st.offset, tr["sensor_noise"],
                        st.keys[rng.SENSOR], counter, scenario.sensor)
 
 

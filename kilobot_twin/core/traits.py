@@ -65,6 +65,11 @@ class RobotTraits:
         noise is then an Ornstein-Uhlenbeck-like process with this correlation time, scaled so
         the heading still diffuses with variance ``sigma_omega**2 * t`` at times long against
         it, while over shorter times it wanders less (see :func:`kinematics.turn_noise_coefficients`).
+    sensor_offset_trial_sd : float
+        Trial-to-trial spread of the sensor offset, ADC counts (the sensor's counterpart of
+        ``bias_trial_sd``: ambient light, temperature and battery shift a robot's dark reading
+        from one trial to the next): each trial reads with its own offset
+        ``sensor_offset + sensor_offset_trial_sd * z``, z ~ N(0, 1) fixed for the trial.
     """
 
     heading_bias: float = 0.0
@@ -79,7 +84,8 @@ class RobotTraits:
     sensor_noise: float = 0.0
     clock_rate: float = 1.0
     clock_trial_sd: float = 0.0
-    heading_noise_tau: float = 0.0  # last: a trait's position keys its population stream
+    heading_noise_tau: float = 0.0
+    sensor_offset_trial_sd: float = 0.0  # new traits go last: a trait's position keys its population stream
 
     def __post_init__(self):
         for f in fields(self):
@@ -107,6 +113,7 @@ _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
     "clock_rate": (0.0, 10.0, False, True, "use a positive relative rate, 1 for a nominal clock"),
     "clock_trial_sd": (0.0, 0.2, True, True, "use a relative standard deviation in [0, 0.2]"),
     "heading_noise_tau": (0.0, 60.0, True, True, "use a correlation time in seconds within [0, 60] (0: white noise)"),
+    "sensor_offset_trial_sd": (0.0, 1023.0, True, True, "use a non-negative standard deviation in ADC counts"),
 }
 
 

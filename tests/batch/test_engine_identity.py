@@ -26,7 +26,8 @@ POP = {"heading_bias": {"dist": "uniform", "low": -0.04, "high": 0.04}, "wheel_n
        "sensor_gain": {"dist": "normal", "mean": 1, "sd": 0.05}, "sensor_offset": {"dist": "normal", "mean": 0, "sd": 10},
        "clock_rate": {"dist": "normal", "mean": 1, "sd": 0.02}, "clock_trial_sd": 0.01, "bias_trial_sd": 0.005,
        "bias_drift": 0.001, "speed_factor": {"dist": "normal", "mean": 1, "sd": 0.03},
-       "heading_noise_tau": {"dist": "uniform", "low": 0.0, "high": 2.0}}
+       "heading_noise_tau": {"dist": "uniform", "low": 0.0, "high": 2.0},
+       "sensor_offset_trial_sd": {"dist": "uniform", "low": 0.0, "high": 20.0}}
 BIAS = {"heading_bias": {"dist": "uniform", "low": -0.04, "high": 0.04}}
 
 SCENARIOS = {

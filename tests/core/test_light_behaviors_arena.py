@@ -54,6 +54,28 @@ def test_sensor_gain_offset_saturation_and_noise():
     assert np.all(r == np.floor(r))
 
 
+def test_sensor_offset_trial_jitter_is_fixed_within_a_trial_and_spread_across_trials():
+    """Trait ``sensor_offset_trial_sd``: every run reads with its own offset, N(offset, sd^2),
+    the same all trial long; other robots' streams are not moved by it. Expected values from
+    theory: a noiseless sensor in a constant field reads floor(offset + z sd + gain I)."""
+    sc = scenario_from_dict({"behavior": "phototaxis", "duration_s": 3, "light": {"kind": "sweep", "period_s": 1e6},
+                             "start": {"kind": "origin"}})
+    sc = sc.replace(light=light.UniformSweepField(period_s=1e6, ramps=1, peak=0.0))  # a dark screen: I = 0
+    R, sd = 4000, 30.0
+    sw = SwarmTraits.uniform(2).with_values(sensor_offset=np.array([100.0, 100.0]),
+                                            sensor_offset_trial_sd=np.array([sd, 0.0]))
+    res = sim.simulate(sc, sw, seed=5, runs=np.arange(R), record_every=1, channels=("reading",))
+    r = res.traj["reading"]  # (R, 2, T)
+    assert np.all(r == r[..., :1])  # fixed within a trial
+    first = r[:, 0, 0]
+    # floor() of N(100, sd^2): mean 99.5, variance sd^2 + 1/12; the sample sd's se is sd / sqrt(2R).
+    assert abs(first.mean() - 99.5) < 4 * sd / np.sqrt(R)
+    assert abs(first.std(ddof=1) / np.sqrt(sd**2 + 1 / 12) - 1) < 4 / np.sqrt(2 * R)
+    assert np.all(r[:, 1] == 100.0)  # the robot without the trait reads its offset
+    # The jitter is the trial's: a new trial (run) draws a new one, uncorrelated with the last.
+    assert abs(np.corrcoef(first[:-1], first[1:])[0, 1]) < 4 / np.sqrt(R)
+
+
 def test_bad_light_config():
     with pytest.raises(ConfigError, match="light.kind"):
         scenario_from_dict({"light": {"kind": "laser"}})
