@@ -380,7 +380,7 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
 
     motion: speed level; heading-noise and speed-noise intensities (:func:`fit_noise_levels`,
     within-robot statistics only); the mean bias and its trial-to-trial spread (Eq. 4-6).
-    light_sweep: gain, offset and reading noise. blink: clock rate and its trial-to-trial
+    light_sweep: gain, offset, reading noise and the offset's trial-to-trial spread. blink: clock rate and its trial-to-trial
     spread. Tracking noise, glitches and late starts are fitted where the data is read
     (:func:`kilobot_twin.gap.model.measured_summaries`). Without ``resim`` (no simulations
     at hand) the noise levels stay as given; with ``noise`` (a model whose noise levels were
@@ -416,7 +416,7 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
         o = model.swarm.sensor_offset.mean() + np.nanmean(meas["offset"]) - np.nanmean(ref["offset"])
         m = model.with_traits(sensor_gain=np.full(n, g), sensor_offset=np.full(n, o))
         if noise is not None:
-            m = m.with_traits(sensor_noise=noise.swarm.sensor_noise)
+            m = _sensor_noises(m, noise)
         elif resim is not None:
             m = fit_sensor_noise(m, meas, resim)
         # The levels again at the fitted reading noise: noise clipped at 0 counts raises the
@@ -512,39 +512,57 @@ ADC_ROUNDING_VAR = 1.0 / 12.0  # counts^2
 
 
 def fit_sensor_noise(m: TwinModel, meas: dict, resim) -> TwinModel:
-    """The light sensor's reading noise from within-robot statistics: how much one robot's fitted
-    gain and offset vary from sweep to sweep, each linear in noise^2 (what the sweeps share, a
-    robot's place in the light and the sensor's bend at the ceiling, is the intercept), mapped by
-    two simulations of ``m`` (at the floor and at a probe level) and solved by least squares over
-    the two rows. Not the residual about each sweep's line: how far the bend departs from a line
-    depends on the sensor's shape, which another world need not share with the twin's. Never
-    below the ADC's own rounding
-    (1-count steps: variance 1/12): a sensor without noise still reads integers, and a noiseless
-    model would make every simulated sweep identical, its null spread 0 and any difference
-    infinitely significant."""
+    """The light sensor's two noises from within-robot statistics: the reading noise (white,
+    per sample) and the trial-to-trial spread of the offset (``sensor_offset_trial_sd``, the
+    sensor's Eq. 6). Read from how much one robot's fitted gain and offset vary from sweep to
+    sweep: each statistic is linear in the two variances (what the sweeps share, a robot's place
+    in the light and the sensor's bend at the ceiling, is the intercept), mapped by three
+    simulations of ``m`` (at the floor, the reading noise at a probe level, the offset spread at a
+    probe level) and solved by non-negative least squares over the two rows (scaled alike).
+    White noise moves both rows; an offset that shifts from trial to trial moves the offset's
+    alone. With the reading noise alone, a world whose sweeps vary for a slow reason (ambient
+    light that wanders over a minute, third world) had one noise fitted to two rows that asked for
+    different amounts: the model's gains varied 1.3-2.1x as much as the data's from sweep to
+    sweep and its offsets 0.67-0.81x, and a named sensor gain was scored against too wide a
+    spread. Not the residual about each sweep's line: how far the bend departs from a line
+    depends on the sensor's shape, which another world need not share with the twin's. The
+    reading noise never goes below the ADC's own rounding (1-count steps: variance 1/12): a
+    sensor without noise still reads integers, and a noiseless model would make every simulated
+    sweep identical, its null spread 0 and any difference infinitely significant."""
+    from scipy.optimize import nnls
+
     n = len(m.swarm)
 
     def stats(s):  # (2,), averaged over replicates for simulations
         return np.array([np.mean(within_var(s["gain"])), np.mean(within_var(s["offset"]))])
 
-    def sim_stats(level):
-        return stats(resim(m.with_traits(sensor_noise=np.full(n, level))))
+    def sim_stats(noise, spread):
+        return stats(resim(m.with_traits(sensor_noise=np.full(n, noise), sensor_offset_trial_sd=np.full(n, spread))))
 
     # The map is anchored at the floor, not at 0: without noise the rounding of a smooth sweep
     # is the same in every sweep, with noise it dithers, so the statistics jump between the two.
-    r0, r1 = sim_stats(np.sqrt(ADC_ROUNDING_VAR)), sim_stats(PROBE["sensor_noise"])
-    slope = (r1 - r0) / (PROBE["sensor_noise"] ** 2 - ADC_ROUNDING_VAR)
-    a = slope / np.maximum(np.abs(slope), 1e-30)  # rows scaled so they weigh alike
-    b = (stats(meas) - r0) / np.maximum(np.abs(slope), 1e-30)
-    excess = max(float(a @ b / max(a @ a, 1e-30)), 0.0)
-    return m.with_traits(sensor_noise=np.full(n, np.sqrt(ADC_ROUNDING_VAR + excess)))
+    floor = np.sqrt(ADC_ROUNDING_VAR)
+    r0 = sim_stats(floor, 0.0)
+    pn, po = PROBE["sensor_noise"], PROBE["sensor_offset_trial_sd"]
+    A = np.column_stack([(sim_stats(pn, 0.0) - r0) / (pn**2 - ADC_ROUNDING_VAR), (sim_stats(floor, po) - r0) / po**2])
+    w = 1.0 / np.maximum(np.abs(A).max(axis=1), 1e-30)  # rows scaled so they weigh alike
+    excess, spread = nnls(A * w[:, None], (stats(meas) - r0) * w)[0]
+    return m.with_traits(sensor_noise=np.full(n, np.sqrt(ADC_ROUNDING_VAR + excess)),
+                         sensor_offset_trial_sd=np.full(n, np.sqrt(spread)))
+
+
+def _sensor_noises(m: TwinModel, noise: TwinModel) -> TwinModel:
+    """``m`` with the sensor noises of ``noise`` (a fold takes its all-trials fit's)."""
+    return m.with_traits(sensor_noise=noise.swarm.sensor_noise, sensor_offset_trial_sd=noise.swarm.sensor_offset_trial_sd)
+
 
 #: The statistic of :func:`_noise_stats` each noise is read from (its probe must move it).
 _PROBE_ROW = {"sigma_omega": 0, "speed_trial_sd": 1, "sigma_v": 2, "bias_trial_sd": 3}
 
 #: Probe levels for the linear maps from noise variances to statistics (any level well above
 #: the simulation noise of the statistics and below where the robot would drive backwards).
-PROBE = {"sigma_omega": 0.02, "sigma_v": 0.001, "speed_trial_sd": 0.03, "bias_trial_sd": 0.02, "sensor_noise": 8.0}
+PROBE = {"sigma_omega": 0.02, "sigma_v": 0.001, "speed_trial_sd": 0.03, "bias_trial_sd": 0.02, "sensor_noise": 8.0,
+         "sensor_offset_trial_sd": 8.0}
 
 
 def bounded_combination(d: float, var_d: float, t: float, var_t: float) -> float:
@@ -912,7 +930,7 @@ class SensorGain(Effect):
         # ceiling moves with its gain, and with it how much its sweeps vary. A fold takes the
         # all-trials fit's (``noise``, see ``refits_noise``).
         if noise is not None:
-            return m.with_traits(sensor_noise=noise.swarm.sensor_noise)
+            return _sensor_noises(m, noise)
         return fit_sensor_noise(m, meas, resim) if resim is not None else m
 
 

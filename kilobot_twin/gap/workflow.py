@@ -1373,13 +1373,14 @@ def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
                    if cond.tracking_correlated_m > 0 else {}),
                 **({"pixel_m": [float(g[0]) for g in cond.lattice]} if cond.lattice is not None else {})}
     if base.kind == "light_sweep":
-        return {"sensor_noise_counts": float(sw.sensor_noise.mean())}
+        return {"sensor_noise_counts": float(sw.sensor_noise.mean()),
+                "sensor_offset_trial_sd_counts": float(sw.sensor_offset_trial_sd.mean())}
     return {"clock_trial_sd": float(sw.clock_trial_sd.mean()), "frame_lead": base.frame_lead}
 
 
 MODEL_TRAITS = {
     "motion": ("heading_bias", "speed_factor", "bias_drift", "bias_trial_sd", "sigma_omega", "sigma_v"),
-    "light_sweep": ("sensor_gain", "sensor_offset", "sensor_noise"),
+    "light_sweep": ("sensor_gain", "sensor_offset", "sensor_noise", "sensor_offset_trial_sd"),
     "blink": ("clock_rate",),
 }
 ALWAYS = ("heading_bias", "speed_factor", "bias_drift", "sensor_gain", "sensor_offset", "clock_rate")
