@@ -7,7 +7,7 @@ noise, white speed noise, trial-to-trial speed and turn-rate jitter), its own tr
 position noise, errors that persist over frames as a smoothing tracker's do (Ornstein-Uhlenbeck at
 the jittered frame times), heavy-tailed glitches of centimetres, dropped frames, tracking losses, jittered
 frame times, robots starting late, robots missing a whole trial, uneven trial lengths), its own
-light sensor (soft saturation with another knee, ADC quantisation) and its own blinking clocks
+light sensor (soft saturation with another knee, offsets that shift from trial to trial, ADC quantisation) and its own blinking clocks
 (frequency offset, trial jitter, tick phase diffusion, late starts). The CSV and YAML are
 written here from ``shared/formats/measured-v1.md``.
 
@@ -69,6 +69,8 @@ NOMINAL = {
     # Last, so that the levels above draw as they did before these two were added.
     "tracking_correlated_m": (0.0015, True, "m: tracking error that persists over frames (sd per axis; a smoothing tracker)"),
     "tracking_tau_s": (0.2, False, "s: correlation time of that error (Ornstein-Uhlenbeck)"),
+    # Last again, for the same reason.
+    "sensor_offset_trial_sd": (4.0, True, "ADC counts: sd of a robot's sensor offset from trial to trial"),
 }
 EFFECTS = {"motion": ("heading_bias", "speed_heterogeneity", "bias_drift", "motion_noise", "floor_tilt"),
            "light_sweep": ("sensor_gain",), "blink": ("clock_drift",)}
@@ -229,7 +231,7 @@ def _keep(rng, shape, hz, drop_p, loss_rate_per_s=1 / 60, loss_s=2.0):
 
 # --- light sweep --------------------------------------------------------------------------------------
 
-def light_sweep(rng, shape, nz, hidden, effect_scale, program):
+def light_sweep(rng, shape, nz, hidden, effect_scale, program, offset_rng=None):
     n, K, hz = shape["robots"], shape["trials"], shape["frame_hz"]
     g_pop = 2.2 * rng.uniform(0.6, 1.5)
     o_pop = rng.uniform(0.0, 15.0)
@@ -245,7 +247,9 @@ def light_sweep(rng, shape, nz, hidden, effect_scale, program):
             t = np.clip(t + rng.uniform(-nz["time_jitter_s"], nz["time_jitter_s"], frames), 0, None)
             t[0] = 0.0
         v_value = np.clip(t / L, 0, 1)  # one ramp of the projector's V per trial
-        raw = o[:, None] + g[:, None] * 1024.0 * v_value[None, :] + nz["sensor_noise"] * rng.standard_normal((n, frames))
+        # This trial's offsets (their own stream, so the draws above and below are as before).
+        o_k = o + (nz.get("sensor_offset_trial_sd", 0.0) * offset_rng.standard_normal(n) if offset_rng is not None else 0.0)
+        raw = o_k[:, None] + g[:, None] * 1024.0 * v_value[None, :] + nz["sensor_noise"] * rng.standard_normal((n, frames))
         p = 9.0  # soft ceiling (another knee than any simulator's)
         sat = np.sign(raw) * np.abs(raw) / (1 + (np.abs(raw) / ADC_MAX) ** p) ** (1 / p)
         reading = np.clip(np.round(sat), 0, ADC_MAX)
@@ -343,7 +347,8 @@ def generate(kind: str, hidden, out, seed: int = 0, nuisance_scale: float | None
         if h not in EFFECTS[kind]:
             raise ValueError(f"--hidden: {h} is not an effect of {kind} (use {', '.join(EFFECTS[kind])})")
     root = np.random.SeedSequence([seed, 0x1D3])
-    s_shape, s_nuis, s_world, s_prog, s_track = (np.random.default_rng(s) for s in root.spawn(5))  # the first 4 as before
+    # (spawned children are keyed by their index: the first ones are as they were before more were spawned)
+    s_shape, s_nuis, s_world, s_prog, s_track, s_offset = (np.random.default_rng(s) for s in root.spawn(6))
     program = draw_program(s_prog if program == "random" else None) | (program if isinstance(program, dict) else {})
     shape = draw_shape(s_shape, kind, fixed_shape)
     nz = draw_nuisance(s_nuis, nuisance_scale)
@@ -353,7 +358,8 @@ def generate(kind: str, hidden, out, seed: int = 0, nuisance_scale: float | None
         nz[k] = float(v)
     fn = {"motion": motion, "light_sweep": light_sweep, "blink": blink}[kind]
     rows, columns, meta, per_robot, extra = fn(s_world, shape, nz, hidden, effect_scale, program,
-                                               **({"track_rng": s_track} if kind == "motion" else {}))
+                                               **({"track_rng": s_track} if kind == "motion" else {}),
+                                               **({"offset_rng": s_offset} if kind == "light_sweep" else {}))
     meta.update({"robots": list(range(shape["robots"])), "trials": shape["trials"],
                  "duration_s": float(max(shape["lengths_s"]))})
     out = Path(out)

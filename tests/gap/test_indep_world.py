@@ -151,3 +151,34 @@ def test_persistent_tracking_error_is_added_on_its_own_stream_and_the_twin_reads
     assert cond.tracking_noise_m == pytest.approx(0.001, rel=0.2)
     cond, _ = measured_summaries(measured.load(tmp_path / "off"))
     assert cond.tracking_correlated_m == 0.0 and cond.tracking_noise_m == pytest.approx(0.001, rel=0.1)
+
+
+@pytest.mark.parametrize("seed, spread", [(11, 12.0), (12, 0.0)])
+def test_the_base_reads_the_sensors_two_noises_of_another_world(tmp_path, seed, spread):
+    """The base fits the light sensor's reading noise and its offset's trial-to-trial spread
+    (``effects.fit_sensor_noise``) to a world that shares no code with the twin: another sensor
+    curve, its own noise, offsets shifted per trial from their own stream. The tolerances are
+    the estimates' sampling errors, from theory: a variance read from the within-robot scatter
+    of ``dof`` sweep-to-sweep deviations has a relative standard error sqrt(2 / dof), so its
+    sd half that. A spread of 0 must come out 0 within 4 standard errors of the offsets'
+    within-robot variance. (With the spread's column taken out of the fit, seed 11 reads a
+    spread of 0 for the world's 12 counts and fails.)"""
+    from kilobot_twin.gap import effects as E
+    from kilobot_twin.gap import workflow as W
+
+    truth = iw.generate("light_sweep", "none", tmp_path / "d", seed=seed,
+                        nuisance={"sensor_noise": 8.0, "sensor_offset_trial_sd": spread})
+    cond, meas = measured_summaries(measured.load(tmp_path / "d"))
+    meas = E.Summaries(meas, np.arange(cond.trials))
+    offsets = np.asarray(meas["offset"])  # (K, N), NaN where a robot missed a trial
+    dof = int(np.sum(np.sum(np.isfinite(offsets), axis=0) - 1))
+    fitter = W._Fitter(cond, meas, E.nominal_model("light_sweep", cond.robot_ids), W.GapSettings(seed=seed), True)
+    base = fitter.fit((), np.arange(cond.trials))
+    got = float(base.swarm.sensor_offset_trial_sd.mean())
+    reading_sd = float(base.swarm.sensor_noise.mean()) / np.sqrt(10)  # the twin averages 10 samples a reading
+    rel = 1.0 / np.sqrt(2 * dof)
+    if spread > 0:
+        assert abs(got / spread - 1) < 4 * rel, (got, dof)
+    else:
+        assert got**2 <= 4 * np.sqrt(2.0 / dof) * E.within_var(offsets), (got, dof)
+    assert abs(reading_sd / truth["nuisance"]["sensor_noise"] - 1) < 4 * rel, (reading_sd, dof)
