@@ -423,3 +423,30 @@ def test_a_speed_spread_whose_trials_vary_less_than_the_model_says_is_named(tmp_
     assert truth["nuisance"]["sigma_v"] == 0.0
     rep = run_gap([str(ds)], tmp_path / "out", gs=GapSettings(seed=3049), log=lambda *a: None)
     assert sorted(rep["named_effects"]) == ["heading_bias", "speed_heterogeneity"] and not rep["unexplained"]
+
+
+def test_smoothing_over_robots_averages_the_monte_carlo_error_away():
+    """``smooth_over_robots`` fits a constant, the traits and the first trait's square by least
+    squares: on a summary that is exactly such a function plus independent noise of variance s^2
+    per robot, ordinary least squares theory gives fitted values whose mean squared error is
+    p s^2 / N (p = 4 terms, N robots), against s^2 for each robot's own value: their sum of
+    squares over the robots, divided by s^2, is chi^2 with p degrees of freedom (mean p, sd
+    sqrt(2 p)), so its mean over ``reps`` draws has sd sqrt(2 p / reps)."""
+    rng = np.random.default_rng(3)
+    N, s, reps = 40, 0.5, 400
+    g = rng.uniform(1.5, 3.0, N)
+    o = rng.normal(5.0, 6.0, N)
+    truth = 2.0 + 3.0 * (g - 2.2) - 0.4 * (g - 2.2) ** 2 + 0.05 * o
+    sse = np.array([np.sum((E.smooth_over_robots(truth + rng.normal(0, s, N), g, o) - truth) ** 2) for _ in range(reps)])
+    p = 4
+    # SSE / s^2 ~ chi^2(p) exactly for a least-squares fit of a model that holds
+    assert abs(sse.mean() / s**2 - p) < 4 * np.sqrt(2 * p / reps)
+    # a robot's own value errs by s^2 each: N s^2 in all, 10x as much here
+    assert sse.mean() < 0.2 * N * s**2
+    # robots whose values are missing keep them missing; with few robots, fewer terms (3 a term)
+    y = truth + rng.normal(0, s, N)
+    y[[3, 7]] = np.nan
+    out = E.smooth_over_robots(y, g, o)
+    assert np.isnan(out[[3, 7]]).all() and np.isfinite(np.delete(out, [3, 7])).all()
+    few = E.smooth_over_robots(np.array([1.0, 2.0, 4.0, 3.0]), np.array([1.0, 2.0, 3.0, 4.0]))
+    np.testing.assert_allclose(few, np.full(4, 2.5))  # one term for 4 robots: their mean
