@@ -850,12 +850,13 @@ def smooth_over_robots(y, *traits):
 
 def _own_fixed_point(m: TwinModel, trait: str, summary: str, target, resim, iterations: int) -> TwinModel:
     """Fixed-point steps of a per-robot trait that scales a summary, against each robot's own
-    simulation: trait_i *= target_i / simulated_i (where both are finite and positive), for a
-    summary that is not quite proportional to its trait. No steps without ``resim``."""
+    simulation read through its smooth fit over the robots' traits (:func:`smooth_over_robots`):
+    trait_i *= target_i / simulated_i (where both are finite and positive), for a summary that
+    is not quite proportional to its trait. No steps without ``resim``."""
     for _ in range(iterations if resim is not None else 0):
-        sim = _nanmean(resim(m)[summary], axis=(0, 1))
-        ok = np.isfinite(target) & np.isfinite(sim) & (sim > 0)
         cur = m.swarm.values[trait]
+        sim = smooth_over_robots(_nanmean(resim(m)[summary], axis=(0, 1)), cur)
+        ok = np.isfinite(target) & np.isfinite(sim) & (sim > 0)
         m = m.with_traits(**{trait: np.where(ok, cur * target / np.where(ok, sim, 1.0), cur)})
     return m
 
