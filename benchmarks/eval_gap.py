@@ -118,6 +118,9 @@ def _write(job: dict, ds: Path, effect_scale: float) -> dict:
         # 0.15), correlated over 0.2 s x 0.25-4.
         corr = 0.0015 * float(np.exp(rng.uniform(np.log(0.25), np.log(4.0)))) * (rng.random() >= 0.15)
         corr_tau = 0.2 * float(np.exp(rng.uniform(np.log(0.25), np.log(4.0))))
+        # The sensor offset's trial-to-trial spread, drawn as the levels above (after them, which
+        # stay as they were).
+        f["sensor_offset_trial_sd"] = float(np.exp(rng.uniform(np.log(0.25), np.log(4.0)))) * (rng.random() >= 0.15)
         obs = Observation(tracking_noise_m=0.002 * f.pop("tracking"), tracking_correlated_m=corr, tracking_tau_s=corr_tau)
         return synth(kind, hidden, ds, seed=seed, obs=obs, nuisance=f, heading_noise_tau_s=tau, effect_scale=effect_scale)
     return synth(kind, hidden, ds, seed=seed, effect_scale=effect_scale)

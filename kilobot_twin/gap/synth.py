@@ -25,7 +25,8 @@ from .observe import Observation, correlated_noise, jittered_times, noisy_positi
 
 # The twin's nominal robot (what the base model assumes where it does not fit the data).
 NOMINAL_MOTION_NOISE = {"sigma_omega": 0.01, "sigma_v": 0.0005}
-NOMINAL_SENSOR = {"sensor_gain": 2.2, "sensor_offset": 5.0, "sensor_noise": 8.0}
+#: (a robot's offset also shifts from trial to trial, by 4 counts: ambient light and temperature)
+NOMINAL_SENSOR = {"sensor_gain": 2.2, "sensor_offset": 5.0, "sensor_noise": 8.0, "sensor_offset_trial_sd": 4.0}
 FORWARD_SPEED_M_S = 0.06 * 48 / 255
 TURN_RATE_SD_RAD_S = 0.008  # paper: heading-bias spread in turn rate
 NOMINAL_CLOCK_TRIAL_SD = 0.002
@@ -74,7 +75,8 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     """Write a dataset to ``out`` and return its truth (also written to ``out/truth.json``).
 
     ``nuisance`` multiplies the nominal noise levels of the world (keys ``sigma_omega``,
-    ``sigma_v``, ``sensor_noise``, ``clock_trial_sd``; tracking noise goes through ``obs``):
+    ``sigma_v``, ``sensor_noise``, ``sensor_offset_trial_sd``, ``clock_trial_sd``; tracking noise
+    goes through ``obs``):
     the workflow fits them, so evaluations randomise them. ``heading_noise_tau_s`` gives every
     robot's turn-rate noise that correlation time (the trait ``heading_noise_tau``; 0: white).
     ``effect_scale`` multiplies every hidden effect's spread over the robots (``HIDDEN``'s sds; the
