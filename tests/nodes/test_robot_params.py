@@ -137,3 +137,30 @@ def test_param_set_takes_effect_from_the_next_step_or_is_refused(ros_args):
         assert node.model.scenario.behavior.name == "still" and node.behavior.name == "still"
     finally:
         node.destroy_node()
+
+
+def test_a_robot_node_reads_with_its_trials_sensor_offset(ros_args):
+    """The trait ``sensor_offset_trial_sd`` reaches a robot node's sensor through its ROS
+    parameter: set to 25 counts, the node's reading in a dark arena is its offset shifted by this
+    trial's draw (what a (1, 1) core state of the same robot, seed and run reads), and before it
+    is set, the offset itself."""
+    from kilobot_twin.core import sim
+    from kilobot_twin.core.traits import SwarmTraits
+
+    ctx = ros_args()
+    node = RobotNode(0, context=ctx)
+    try:
+        sc = scenario_from_dict({"behavior": "phototaxis", "light": {"kind": "cone", "radius_m": 0.01, "center": [5.0, 5.0]},
+                                 "start": {"kind": "origin", "heading_rad": 0.0}})
+        node.set_world(_world(sc))
+        assert node.set_parameters([Parameter("sensor_offset", value=100.0)])[0].successful
+        node.model.step()
+        assert node.model.state.reading[0, 0] == 100.0
+        assert node.set_parameters([Parameter("sensor_offset_trial_sd", value=25.0)])[0].successful
+        node.model.step()
+        got = node.model.state.reading[0, 0]
+        ref = sim.init_state(node.model.scenario, SwarmTraits.from_robots([node.traits], ids=[0]), node.seed,
+                             runs=[node.run], trials=[node.trial])
+        assert got == np.floor(ref.offset[0, 0]) and got != 100.0
+    finally:
+        node.destroy_node()
