@@ -508,14 +508,7 @@ def _timing_var(spread, ref, model, resim=None) -> float:
     return float(np.nanmean(spread(ref["toggle_rate"])))
 
 
-#: The least reading noise the base fits, counts a sample (squared: a variance). Not 0: a
-#: noiseless model makes every simulated sweep of identical robots alike, its null spread 0 and any
-#: difference infinitely significant. Not the ADC's rounding either (sqrt(1/12) a sample, the floor
-#: before): noise of that size dithers the rounding that a noiseless sensor repeats alike in every
-#: sweep, and the model's gains varied from sweep to sweep 3-7x as much as such a world's (synth
-#: 3063, 3067, without reading noise: the null's F ratio 2.3-3.4 sds above the data's, and robots
-#: apart by the stated size unflagged). At 0.02 the model's is 1.02-1.21x the data's.
-NOISE_FLOOR_VAR = 0.02**2  # counts^2
+ADC_ROUNDING_VAR = 1.0 / 12.0  # counts^2
 
 
 def fit_sensor_noise(m: TwinModel, meas: dict, resim) -> TwinModel:
@@ -533,7 +526,9 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim) -> TwinModel:
     sweep and its offsets 0.67-0.81x, and a named sensor gain was scored against too wide a
     spread. Not the residual about each sweep's line: how far the bend departs from a line
     depends on the sensor's shape, which another world need not share with the twin's. The
-    reading noise never goes below a small floor (:data:`NOISE_FLOOR_VAR`)."""
+    reading noise never goes below the ADC's own rounding (1-count steps: variance 1/12): a
+    sensor without noise still reads integers, and a noiseless model would make every simulated
+    sweep identical, its null spread 0 and any difference infinitely significant."""
     from scipy.optimize import nnls
 
     n = len(m.swarm)
@@ -546,13 +541,13 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim) -> TwinModel:
 
     # The map is anchored at the floor, not at 0: without noise the rounding of a smooth sweep
     # is the same in every sweep, with noise it dithers, so the statistics jump between the two.
-    floor = np.sqrt(NOISE_FLOOR_VAR)
+    floor = np.sqrt(ADC_ROUNDING_VAR)
     r0 = sim_stats(floor, 0.0)
     pn, po = PROBE["sensor_noise"], PROBE["sensor_offset_trial_sd"]
-    A = np.column_stack([(sim_stats(pn, 0.0) - r0) / (pn**2 - NOISE_FLOOR_VAR), (sim_stats(floor, po) - r0) / po**2])
+    A = np.column_stack([(sim_stats(pn, 0.0) - r0) / (pn**2 - ADC_ROUNDING_VAR), (sim_stats(floor, po) - r0) / po**2])
     w = 1.0 / np.maximum(np.abs(A).max(axis=1), 1e-30)  # rows scaled so they weigh alike
     excess, spread = nnls(A * w[:, None], (stats(meas) - r0) * w)[0]
-    return m.with_traits(sensor_noise=np.full(n, np.sqrt(NOISE_FLOOR_VAR + excess)),
+    return m.with_traits(sensor_noise=np.full(n, np.sqrt(ADC_ROUNDING_VAR + excess)),
                          sensor_offset_trial_sd=np.full(n, np.sqrt(spread)))
 
 
