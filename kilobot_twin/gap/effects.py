@@ -509,6 +509,9 @@ def _timing_var(spread, ref, model, resim=None) -> float:
 
 
 ADC_ROUNDING_VAR = 1.0 / 12.0  # counts^2
+#: The least trial-to-trial spread of the offset (counts) that draws a noiseless sensor's rounding
+#: anew in every trial: the fraction of N(o, s^2) is within 1 % of uniform from s = 0.5.
+ROUNDING_DRAWN_ANEW = 0.5
 
 
 def fit_sensor_noise(m: TwinModel, meas: dict, resim) -> TwinModel:
@@ -546,7 +549,20 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim) -> TwinModel:
     pn, po = PROBE["sensor_noise"], PROBE["sensor_offset_trial_sd"]
     A = np.column_stack([(sim_stats(pn, 0.0) - r0) / (pn**2 - ADC_ROUNDING_VAR), (sim_stats(floor, po) - r0) / po**2])
     w = 1.0 / np.maximum(np.abs(A).max(axis=1), 1e-30)  # rows scaled so they weigh alike
-    excess, spread = nnls(A * w[:, None], (stats(meas) - r0) * w)[0]
+    data = stats(meas)
+    (excess, spread), miss = nnls(A * w[:, None], (data - r0) * w)
+    if excess == 0.0:
+        # The data ask for no noise above the floor: a sensor without noise, whose rounding a
+        # robot repeats alike in every sweep where its offset stays (and draws anew where the
+        # offset shifts by a count or more). Dithered by the floor, the model's gains varied 3-7x
+        # as much as such data's from sweep to sweep (synth 3063, 3067). Without noise at all
+        # the model rounds as the data do, if its offsets shift enough to draw the rounding anew
+        # in every trial (else its replicates would be alike and its spreads 0).
+        z0 = sim_stats(0.0, 0.0)
+        col = (sim_stats(0.0, po) - z0) / po**2
+        (spread0,), miss0 = nnls((col * w)[:, None], (data - z0) * w)
+        if miss0 < miss and np.sqrt(spread0) >= ROUNDING_DRAWN_ANEW:
+            return m.with_traits(sensor_noise=np.zeros(n), sensor_offset_trial_sd=np.full(n, np.sqrt(spread0)))
     return m.with_traits(sensor_noise=np.full(n, np.sqrt(ADC_ROUNDING_VAR + excess)),
                          sensor_offset_trial_sd=np.full(n, np.sqrt(spread)))
 
