@@ -59,6 +59,9 @@ class Conditions:
     forward_speed_m_s: float = synth.FORWARD_SPEED_M_S
     half_period_ticks: int = synth.HALF_PERIOD_TICKS
     tick_hz: float = synth.TICK_HZ
+    #: light_sweep: how the sensors bend towards their ceiling (the twin's ``SensorModel.knee``;
+    #: 0 a hard clip), fitted to the data (:func:`summaries.sensor_knee`).
+    sensor_knee: float = synth.SENSOR_KNEE
 
     @property
     def shape(self):
@@ -110,7 +113,9 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         st, rd = ds.grid("stimulus")[1][..., ::q], ds.grid("reading")[1][..., ::q]
         observed = np.isfinite(rd)
         s = summaries.light_sweep(st, rd)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed)
+        knee = summaries.sensor_knee(st, rd, s["gain"], s["offset"])
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed,
+                          sensor_knee=synth.SENSOR_KNEE if knee is None else knee)
     else:
         led = ds.grid("led")[1][..., ::q]
         observed = np.isfinite(led)
@@ -196,7 +201,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
         s = summaries.motion(*tracks, cond.dt_s, wander_lags_s=summaries.wander_lags(total_tracking_noise(cond)),
                               threads=THREADS)
     elif cond.kind == "light_sweep":
-        sc = synth.light_scenario(cond.duration_s, cond.dt_s)
+        sc = synth.light_scenario(cond.duration_s, cond.dt_s, cond.sensor_knee)
         res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, threads=THREADS,
                               channels=("reading",))
         T = mask.shape[-1]

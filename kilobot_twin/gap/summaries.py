@@ -13,6 +13,7 @@ import warnings
 import numpy as np
 
 from ..batch import engine, kernel
+from ..core.constants import LIGHT_READING_MAX
 
 
 #: Lag over which headings and speeds are measured: long enough that tracking noise (mm)
@@ -643,6 +644,36 @@ def light_sweep(stimulus, reading, knee_counts: float = 600.0, min_stimulus: flo
     floors = {"gain_floor": q / np.maximum(var, 1e-12), "offset_floor": q * (1.0 / np.maximum(n, 1) + ms**2 / np.maximum(var, 1e-12))}
     bad = n < 5
     return {k: np.where(bad, np.nan, v) for k, v in {"gain": gain, "offset": offset, "residual_sd": sd, **floors}.items()}
+
+
+#: The knees :func:`sensor_knee` chooses from (the twin's soft clip, ``SensorModel.knee``): from a
+#: sensor that bends over hundreds of counts below its ceiling (2.1) to one all but straight up
+#: to it (68), 12 % apart, through the twin's own 6; 0 is a hard clip.
+KNEE_GRID = 6.0 * 2.0 ** (np.arange(-9, 22) / 6.0)
+
+
+def sensor_knee(stimulus, reading, gain, offset, knee_counts: float = 600.0, ceiling: float = LIGHT_READING_MAX) -> float:
+    """How the sensors bend towards their ceiling, as the twin's soft clip y / (1 + (y / c)^p)^(1/p)
+    (``SensorModel.knee`` = p; 0 for a hard clip at c): the p of :data:`KNEE_GRID` (or the hard
+    clip) whose bend fits the readings best (least squares) where each track's line from below
+    ``knee_counts`` (``gain``, ``offset`` (K, N), from :func:`light_sweep`) runs above it, up to
+    twice the ceiling. None where fewer than 20 readings lie there.
+
+    The bend below the cut is what matters: it is under 1 % at 600 counts for every knee of the
+    grid from p = 4, but a robot whose offset shifts from trial to trial moves along it, which moves
+    its fitted gain too. A twin that bends more than the data's sensor (the twin's p = 6 against
+    another world's 9) made its gains vary 4-5x as much as a noiseless sensor's from sweep to sweep."""
+    with np.errstate(invalid="ignore"):
+        y = offset[..., None] + gain[..., None] * stimulus
+        use = np.isfinite(reading) & np.isfinite(y) & (y > knee_counts) & (y < 2.0 * ceiling)
+    if use.sum() < 20:
+        return None
+    y, r = y[use], reading[use]
+    p = KNEE_GRID[:, None]
+    soft = np.minimum(y / (1.0 + (y / ceiling) ** p) ** (1.0 / p), ceiling)
+    sse = np.append(((r - soft) ** 2).sum(-1), ((r - np.minimum(y, ceiling)) ** 2).sum())
+    best = int(np.argmin(sse))
+    return float(KNEE_GRID[best]) if best < len(KNEE_GRID) else 0.0
 
 
 def blink(led, dt_s: float, threads: int = 1) -> dict:

@@ -26,6 +26,9 @@ from .observe import Observation, correlated_noise, jittered_times, noisy_positi
 # The twin's nominal robot (what the base model assumes where it does not fit the data).
 NOMINAL_MOTION_NOISE = {"sigma_omega": 0.01, "sigma_v": 0.0005}
 #: (a robot's offset also shifts from trial to trial, by 4 counts: ambient light and temperature)
+#: The twin's sensor bend towards its ceiling (``SensorModel.knee``; p = 6 matches the paper's
+#: Fig. 8b by eye).
+SENSOR_KNEE = 6.0
 NOMINAL_SENSOR = {"sensor_gain": 2.2, "sensor_offset": 5.0, "sensor_noise": 8.0, "sensor_offset_trial_sd": 4.0}
 FORWARD_SPEED_M_S = 0.06 * 48 / 255
 TURN_RATE_SD_RAD_S = 0.008  # paper: heading-bias spread in turn rate
@@ -196,10 +199,10 @@ def _motion(swarm, K, T, dt, seed, tilt, obs, rng):
     return tracks, meta
 
 
-def light_scenario(duration_s: float, dt_s: float):
+def light_scenario(duration_s: float, dt_s: float, knee: float = SENSOR_KNEE):
     return scenario_from_dict({"behavior": "still", "dt_s": dt_s, "duration_s": duration_s, "tick_hz": 31.0,
                                "light": {"kind": "sweep", "period_s": duration_s, "ramps": 1},
-                               "sensor": {"knee": 6.0}, "start": {"kind": "origin"}})
+                               "sensor": {"knee": float(knee)}, "start": {"kind": "origin"}})
 
 
 def _light_sweep(swarm, K, T, dt, seed, obs, rng):

@@ -1394,7 +1394,8 @@ def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
                 **({"pixel_m": [float(g[0]) for g in cond.lattice]} if cond.lattice is not None else {})}
     if base.kind == "light_sweep":
         return {"sensor_noise_counts": float(sw.sensor_noise.mean()),
-                "sensor_offset_trial_sd_counts": float(sw.sensor_offset_trial_sd.mean())}
+                "sensor_offset_trial_sd_counts": float(sw.sensor_offset_trial_sd.mean()),
+                "sensor_knee": float(cond.sensor_knee)}
     return {"clock_trial_sd": float(sw.clock_trial_sd.mean()), "frame_lead": base.frame_lead}
 
 
