@@ -1143,7 +1143,15 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
                 k_eff = float(np.nanmean(seen.sum(0)))
                 dof = int((seen.sum(0) - 1).clip(0).sum())
                 s_w2, floor = E.within_var(x), _resolution(meas, comp)
-                if floor is not None and s_w2 < floor:  # the ADC's rounding, known: not estimated
+                if floor is not None:
+                    # Below the ADC's rounding (known: not estimated) the F ratios count no
+                    # difference, in the data and in the base's null alike; a base that rounds
+                    # as the data do (a sensor without noise, E.fit_sensor_noise) has its null
+                    # there too, and an effect raises the F from that null as from the data's
+                    # own within-robot variance, not from the rounding's (independent world
+                    # 3060: the gains' 0.033 against a rounding of 0.060).
+                    floor = min(float(floor), float(np.nanmean(E.within_var(null[comp]))))
+                if floor is not None and s_w2 < floor:
                     s_w2, dof = float(floor), None
             rel_floor = float(_rel_floor(x))
             if s_w2 < rel_floor:
