@@ -62,6 +62,9 @@ class Conditions:
     #: light_sweep: how the sensors bend towards their ceiling (the twin's ``SensorModel.knee``;
     #: 0 a hard clip), fitted to the data (:func:`summaries.sensor_knee`).
     sensor_knee: float = synth.SENSOR_KNEE
+    #: light_sweep: the stimulus each robot saw at each frame (K, N, T; NaN where none), at which
+    #: the twin's sensors are read (None: the twin's own ramp over ``duration_s``).
+    stimulus: np.ndarray | None = None
 
     @property
     def shape(self):
@@ -115,7 +118,7 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         s = summaries.light_sweep(st, rd)
         knee = summaries.sensor_knee(st, rd, s["gain"], s["offset"])
         cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed,
-                          sensor_knee=synth.SENSOR_KNEE if knee is None else knee)
+                          sensor_knee=synth.SENSOR_KNEE if knee is None else knee, stimulus=st)
     else:
         led = ds.grid("led")[1][..., ::q]
         observed = np.isfinite(led)
@@ -124,6 +127,27 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
                           half_period_ticks=int(ds.meta.get("half_period_ticks", synth.HALF_PERIOD_TICKS)),
                           tick_hz=float(ds.meta.get("nominal_tick_hz", synth.TICK_HZ)))
     return cond, s
+
+
+def sweep_readings(sc, swarm: SwarmTraits, seed: int, runs, trials, stimulus) -> np.ndarray:
+    """The twin's readings of robots that stand under a uniform light whose V-value was
+    ``stimulus`` (R, N, T) at each frame: each run's sensors (``core.light.sense``: the trial's
+    offset, the reading noise, the knee of ``sc.sensor``, the clip and the ADC's integer average)
+    read at the data's own stimuli, not at the twin's ramp. The ramp's samples are evenly spaced,
+    so a noiseless sensor's rounding runs as a regular sawtooth along it, which a line averages
+    out; where another world's frames come at uneven times or its projector steps, its rounding
+    is as good as white noise. The robots stand still, so nothing else of a step matters: at the
+    twin's ramp (frame j at j dt) these are the engine's readings, draw for draw (tested)."""
+    from ..core import light, rng
+
+    st = sim.init_state(sc, swarm, seed, runs=runs, trials=trials)
+    tr, keys = st.traits, st.keys[rng.SENSOR]
+    v = np.nan_to_num(np.asarray(stimulus, dtype=float), nan=0.0)
+    out = np.empty(v.shape)
+    for j in range(v.shape[-1]):
+        out[..., j] = light.sense(sc.light.peak * v[..., j], tr["sensor_gain"], st.offset, tr["sensor_noise"], keys, j,
+                                  sc.sensor)
+    return out
 
 
 def total_tracking_noise(cond: Conditions) -> float:
@@ -202,11 +226,13 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
                               threads=THREADS)
     elif cond.kind == "light_sweep":
         sc = synth.light_scenario(cond.duration_s, cond.dt_s, cond.sensor_knee)
-        res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, threads=THREADS,
-                              channels=("reading",))
         T = mask.shape[-1]
-        stim = np.broadcast_to(sc.light.v_value(res.t_s[:T]), mask.shape)
-        s = summaries.light_sweep(np.where(mask, stim, np.nan), np.where(mask, res.traj["reading"][..., :T], np.nan))
+        if cond.stimulus is None:
+            stim = np.broadcast_to(sc.light.v_value(np.arange(T) * cond.dt_s), mask.shape)
+        else:
+            stim = np.tile(cond.stimulus[trials], (M, 1, 1))
+        reading = sweep_readings(sc, swarm, seed, runs, trial_idx, stim)
+        s = summaries.light_sweep(np.where(mask, stim, np.nan), np.where(mask, reading, np.nan))
     else:
         sc = synth.blink_scenario(cond.duration_s, cond.dt_s, cond.half_period_ticks, cond.tick_hz)
         T = mask.shape[-1]
