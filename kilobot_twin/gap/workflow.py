@@ -1122,6 +1122,7 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             continue
         s0 = sd0[stat]
         x = meas[comp]  # (K, N)
+        shift = 0.0  # where the resolution floors the data's F and the null's apart (below)
         with np.errstate(all="ignore"):
             seen = np.isfinite(x)
             if drift:
@@ -1146,21 +1147,27 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             else:
                 k_eff = float(np.nanmean(seen.sum(0)))
                 dof = int((seen.sum(0) - 1).clip(0).sum())
-                s_w2, floor = E.within_var(x), _resolution(meas, comp)
+                s_w2 = E.within_var(x)
+                # Below the ADC's rounding the F ratios count no difference: their within-robot
+                # mean square is floored there (:func:`_resolution`), which lowers the data's F
+                # by phi_d = ln(floor / s_w^2) where the data's trials vary less, and the null's
+                # by phi_m (its mean over the base's replicates). The test flags the data's F
+                # above the null's, so on the emulation's scale (the F without the floor) the
+                # threshold moves by phi_d - phi_m: 0 where the base rounds as the data do (both
+                # floored alike, a sensor without noise fitted without any) or where neither is
+                # floored. Taking the floor for the data's within-robot variance instead said
+                # nothing of where the null lies: a base whose gains vary at the floor from
+                # sweep to sweep against data that vary 0.55x as much (independent world 3060)
+                # names less than stated, one that varies as little as the data names more.
+                floor = _resolution(meas, comp)
                 if floor is not None:
-                    # Below the ADC's rounding (known: not estimated) the F ratios count no
-                    # difference, in the data and in the base's null alike; a base that rounds
-                    # as the data do (a sensor without noise, E.fit_sensor_noise) has its null
-                    # there too, and an effect raises the F from that null as from the data's
-                    # own within-robot variance, not from the rounding's (independent world
-                    # 3060: the gains' 0.033 against a rounding of 0.060).
-                    floor = min(float(floor), float(np.nanmean(E.within_var(null[comp]))))
-                if floor is not None and s_w2 < floor:
-                    s_w2, dof = float(floor), None
+                    floored = _resolution(null, comp)
+                    shift = float(_f_between(x) - _f_between(x, floor)
+                                  - np.nanmean(_f_between(null[comp]) - _f_between(null[comp], floored)))
             rel_floor = float(_rel_floor(x))
             if s_w2 < rel_floor:
                 s_w2, dof = rel_floor, None
-            tau_det = float(np.sqrt(s_w2 * np.expm1(z * s0) / max(k_eff, 1.0)))
+            tau_det = float(np.sqrt(s_w2 * np.expm1(z * s0 + shift) / max(k_eff, 1.0)))
             level = float(np.nanmean(x))
         taus = tau_det * np.geomspace(0.7, 16.0, 20)
         noise, scale = None, (1.0 if comp == "turn_rate" else 1.0 / abs(level))
@@ -1186,7 +1193,7 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         # The other summaries the effect predicts per robot (a sensor gain's offsets): their
         # estimates cost held-out likelihood where robots do not differ in them.
         companions = [np.isfinite(meas[c]) for c in E.LIBRARY[effect].predicts if c != comp and c in meas]
-        pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0, seed=seed, noise=noise,
+        pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0 + shift, seed=seed, noise=noise,
                           gain_level=gain_level, dof=dof, rival_threshold=rival, companions=companions)
         tau = _first_crossing(taus, pw, power)
         per_size = 1.0 if noise is not None else float((sensitivity or {}).get(comp, 1.0))
