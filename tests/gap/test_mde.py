@@ -433,3 +433,48 @@ def test_minimum_detectable_hands_the_emulation_its_variances_degrees_of_freedom
     monkeypatch.setattr(W, "naming_power", lambda *a, **kw: got.append(kw.get("dof")) or real(*a, **kw))
     W.minimum_detectable("blink", meas, null, K, 0.01)
     assert got == [35]
+
+
+def test_a_resolution_that_floors_the_data_and_the_null_alike_does_not_count_as_noise():
+    """Light-sweep summaries drawn in numpy, 20 robots x 6 trials, gains varying 0.3 from trial
+    to trial in the data and in the base's null alike (a noiseless sensor fitted without noise).
+    The F ratios floor the within-robot mean square at the rounding's resolution (``gain_floor``);
+    a floor of 1, above both, lowers the data's F and the null's alike, by ln(1 / msw). So the
+    floor moves the detection size only through the null's spread: the floored F is the between
+    mean square over a constant, sd(ln msb) instead of sd(ln msb - ln msw). Expected, by hand
+    (one-way ANOVA in numpy, normal quantiles): the size grows as sqrt(expm1(z s0)) with z =
+    z(alpha / 2) + z(0.8) and s0 the null's sd, its threshold moved by phi_d - phi_m (the data's
+    ln(1 / msw) less the null's mean of it): the ratio of the sizes with and without the floor
+    within 2 %. Taking the resolution for the data's within-robot variance (the rule before)
+    stated 1.6x the size."""
+    from scipy.stats import norm
+
+    K, N, M = 6, 20, 400
+    rng = np.random.default_rng(21)
+
+    def light(floor, lead=()):
+        shape = lead + (K, N)
+        return {"gain": 1000.0 + np.sqrt(0.3) * rng.standard_normal(shape), "offset": 5.0 + rng.standard_normal(shape),
+                "gain_floor": np.full(shape, floor), "offset_floor": np.full(shape, 1e-6)}
+
+    def anova(g):  # ln msb, ln msw of one-way layouts (..., K, N)
+        m_i = g.mean(-2, keepdims=True)
+        msb = K * ((m_i - g.mean((-2, -1), keepdims=True)) ** 2).sum((-2, -1)) / (N - 1)
+        msw = ((g - m_i) ** 2).sum((-2, -1)) / (N * (K - 1))
+        return np.log(msb), np.log(msw)
+
+    state = rng.bit_generator.state
+    null, meas = light(1e-6, (M,)), light(1e-6)
+    free = minimum_detectable("light_sweep", meas, null, K, 0.01)["sensor_gain"]["detection_size"]
+    rng.bit_generator.state = state  # the same draws, floored at 1
+    null, meas = light(1.0, (M,)), light(1.0)
+    floored = minimum_detectable("light_sweep", meas, null, K, 0.01)["sensor_gain"]["detection_size"]
+
+    z = norm.isf(0.01 / 2) + norm.isf(0.2)
+    b_null, w_null = anova(null["gain"])
+    _, w_data = anova(meas["gain"])
+    s_free, s_floored = np.std(b_null - w_null, ddof=1), np.std(b_null, ddof=1)
+    shift = -w_data - np.mean(-w_null)
+    expected = np.sqrt(np.expm1(z * s_floored + shift) / np.expm1(z * s_free))
+    assert abs(floored / free / expected - 1) < 0.02, (floored / free, expected)
+    assert np.all(np.exp(w_null) < 1) and np.exp(w_data) < 1  # the floor binds everywhere
