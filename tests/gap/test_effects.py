@@ -443,10 +443,16 @@ def test_smoothing_over_robots_averages_the_monte_carlo_error_away():
     assert abs(sse.mean() / s**2 - p) < 4 * np.sqrt(2 * p / reps)
     # a robot's own value errs by s^2 each: N s^2 in all, 10x as much here
     assert sse.mean() < 0.2 * N * s**2
-    # robots whose values are missing keep them missing; with few robots, fewer terms (3 a term)
+    # robots whose values are missing keep them missing
     y = truth + rng.normal(0, s, N)
     y[[3, 7]] = np.nan
     out = E.smooth_over_robots(y, g, o)
     assert np.isnan(out[[3, 7]]).all() and np.isfinite(np.delete(out, [3, 7])).all()
+    # with few robots the square goes (3 robots a term), each trait's own term stays: 4 robots,
+    # one trait, the least-squares line (by hand: slope 4 / 5 through (2.5, 2.5))
     few = E.smooth_over_robots(np.array([1.0, 2.0, 4.0, 3.0]), np.array([1.0, 2.0, 3.0, 4.0]))
-    np.testing.assert_allclose(few, np.full(4, 2.5))  # one term for 4 robots: their mean
+    np.testing.assert_allclose(few, [1.3, 2.1, 2.9, 3.7])
+    # 7 robots, two traits: a summary linear in both comes back exactly (a fit that kept the
+    # constant and the first trait alone read every robot at the mean offset)
+    lin = 2.0 + 3.0 * (g[:7] - 2.2) + 1.0 * o[:7]
+    np.testing.assert_allclose(E.smooth_over_robots(lin, g[:7], o[:7]), lin, rtol=1e-9)
