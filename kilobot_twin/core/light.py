@@ -207,8 +207,9 @@ def sensor_response(intensity, gain, offset, model: SensorModel = SensorModel())
     return np.minimum(y, model.ceiling)
 
 
-def sense(intensity, gain, offset, noise_sd, keys, counter: int, model: SensorModel = SensorModel()):
-    """One averaged light measurement per robot, in integer ADC counts.
+def sense(intensity, gain, offset, noise_sd, keys, counter, model: SensorModel = SensorModel()):
+    """One averaged light measurement per robot, in integer ADC counts (``counter``: the step's
+    counter, or an array of them broadcast against ``keys``, for many steps at once).
 
     The mean of ``model.samples`` samples with per-sample noise ``noise_sd`` is drawn as one
     normal with sd ``noise_sd / sqrt(samples)`` (exact for Gaussian sample noise), then

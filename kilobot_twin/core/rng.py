@@ -52,9 +52,13 @@ def mix64(z: np.ndarray) -> np.ndarray:
     return z ^ (z >> _S31)
 
 
-def _offset(counter: int) -> np.ndarray:
-    """``counter * GOLDEN mod 2^64`` as a 0-d uint64 array (Python ints: no overflow warnings)."""
-    return np.array((int(counter) * 0x9E3779B97F4A7C15) & _MASK64, dtype=np.uint64)
+def _offset(counter) -> np.ndarray:
+    """``counter * GOLDEN mod 2^64`` as a uint64 array: 0-d for an int (Python ints: no overflow
+    warnings), of the counter's shape for an array of non-negative ints (uint64 arithmetic, which
+    wraps mod 2^64 without a warning for arrays: the same values)."""
+    if np.ndim(counter) == 0:
+        return np.array((int(counter) * 0x9E3779B97F4A7C15) & _MASK64, dtype=np.uint64)
+    return np.asarray(counter, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15)
 
 
 def root_key(seed: int) -> np.uint64:
@@ -85,14 +89,16 @@ def robot_keys(seed: int, runs, robots, purpose: int) -> np.ndarray:
     return mix64(k ^ mix64((robots + np.uint64(1)) * _M1))
 
 
-def uniform(keys: np.ndarray, counter: int) -> np.ndarray:
-    """Uniform floats in [0, 1) for every key at one counter value; shape of ``keys``."""
+def uniform(keys: np.ndarray, counter) -> np.ndarray:
+    """Uniform floats in [0, 1) for every key at one counter value (or an array of them,
+    broadcast against ``keys``); shape of ``keys``."""
     z = mix64(keys + _offset(counter))
     return (z >> _S11).astype(np.float64) * _TO_UNIT
 
 
-def normal_pair(keys: np.ndarray, counter: int) -> tuple[np.ndarray, np.ndarray]:
-    """Two independent standard normals per key and counter (Box-Muller).
+def normal_pair(keys: np.ndarray, counter) -> tuple[np.ndarray, np.ndarray]:
+    """Two independent standard normals per key and counter (Box-Muller); ``counter`` an int or
+    an array of them broadcast against ``keys`` (the values of one call per counter).
 
     One 64-bit hash gives both uniforms (its two 32-bit halves), which halves the hashing;
     the price is that tails are cut at sqrt(2 ln 2^32) = 6.66 sigma (probability 3e-11).

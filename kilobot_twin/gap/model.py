@@ -141,13 +141,18 @@ def sweep_readings(sc, swarm: SwarmTraits, seed: int, runs, trials, stimulus) ->
     from ..core import light, rng
 
     st = sim.init_state(sc, swarm, seed, runs=runs, trials=trials)
-    tr, keys = st.traits, st.keys[rng.SENSOR]
+    gain, noise, offset, keys = (a[..., None] for a in (st.traits["sensor_gain"], st.traits["sensor_noise"], st.offset,
+                                                        st.keys[rng.SENSOR]))
     v = np.nan_to_num(np.asarray(stimulus, dtype=float), nan=0.0)
     out = np.empty(v.shape)
-    for j in range(v.shape[-1]):
-        out[..., j] = light.sense(sc.light.peak * v[..., j], tr["sensor_gain"], st.offset, tr["sensor_noise"], keys, j,
-                                  sc.sensor)
+    for j in range(0, v.shape[-1], _FRAMES_AT_ONCE):  # frames in blocks: vectorised, in bounded memory
+        f = np.arange(j, min(j + _FRAMES_AT_ONCE, v.shape[-1]))
+        out[..., f] = light.sense(sc.light.peak * v[..., f], gain, offset, noise, keys, f, sc.sensor)
     return out
+
+
+#: Frames :func:`sweep_readings` reads at once.
+_FRAMES_AT_ONCE = 64
 
 
 def total_tracking_noise(cond: Conditions) -> float:

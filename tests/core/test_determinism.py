@@ -91,3 +91,19 @@ def test_grid_start_of_a_robot_does_not_depend_on_the_batch():
         assert (xa[0, 0], ya[0, 0]) == (x[0, rid], y[0, rid])
     # The 7x7 lattice is centred: robot 24 sits at the origin.
     assert x[0, 24] == 0 and y[0, 24] == 0
+
+
+def test_counters_given_as_an_array_draw_what_one_call_per_counter_draws():
+    """``rng.normal_pair`` / ``rng.uniform`` with an array of counters (broadcast against the
+    keys) must give, draw for draw, the values of one call per counter, up to counters past 2^32
+    (the uint64 product wraps mod 2^64 as the Python ints' product is reduced)."""
+    from kilobot_twin.core import rng
+
+    keys = rng.robot_keys(5, np.arange(3), np.arange(4), rng.SENSOR)[..., None]  # (3, 4, 1)
+    counters = np.array([0, 1, 7, 1000, 2**33 + 5])
+    z1, z2 = rng.normal_pair(keys, counters)
+    u = rng.uniform(keys, counters)
+    for j, c in enumerate(counters):
+        a, b = rng.normal_pair(keys[..., 0], int(c))
+        assert np.array_equal(z1[..., j], a) and np.array_equal(z2[..., j], b)
+        assert np.array_equal(u[..., j], rng.uniform(keys[..., 0], int(c)))
