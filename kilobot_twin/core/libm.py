@@ -46,11 +46,14 @@ def _ufuncs() -> dict:
                 if C_LIBRARY:
                     from numba import vectorize
 
-                    _UFUNCS["log"] = vectorize(["float64(float64)"], cache=True)(_log)
-                    _UFUNCS["exp"] = vectorize(["float64(float64)"], cache=True)(_exp)
-                    _UFUNCS["pow"] = vectorize(["float64(float64, float64)"], cache=True)(_pow)
+                    made = {"log": vectorize(["float64(float64)"], cache=True)(_log),
+                            "exp": vectorize(["float64(float64)"], cache=True)(_exp),
+                            "pow": vectorize(["float64(float64, float64)"], cache=True)(_pow)}
                 else:
-                    _UFUNCS.update(log=np.log, exp=np.exp, pow=np.power)
+                    made = {"log": np.log, "exp": np.exp, "pow": np.power}
+                # all three at once: a thread that finds the dict filled (outside the lock) must
+                # find every one of them, not "log" alone while "exp" compiles
+                _UFUNCS.update(made)
     return _UFUNCS
 
 
