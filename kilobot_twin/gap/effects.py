@@ -855,7 +855,7 @@ def smooth_over_robots(y, *traits):
     ok = np.isfinite(y)
     if not ok.any():
         return y
-    ds = [np.asarray(t, dtype=float) - np.mean(np.asarray(t, dtype=float)[ok]) for t in traits]
+    ds = [t - t[ok].mean() for t in (np.asarray(t, dtype=float) for t in traits)]
     X = np.column_stack([np.ones_like(y)] + ds + [d**2 for d in ds[:1]])
     p = X.shape[1] if int(ok.sum()) >= 3 * X.shape[1] else 1 + len(ds)  # the square: 3 robots a term
     X = X[:, :p]

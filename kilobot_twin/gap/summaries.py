@@ -592,7 +592,12 @@ def mask_before_onset(x, y, noise_m: float, move_m: float = 0.004):
     return np.where(keep, x, np.nan), np.where(keep, y, np.nan)
 
 
-def light_sweep(stimulus, reading, knee_counts: float = 600.0, min_stimulus: float = 0.02,
+#: The reading below which a sweep is summarised by a line (:func:`light_sweep`), and above which
+#: its bend is read (:func:`sensor_knee`).
+KNEE_COUNTS = 600.0
+
+
+def light_sweep(stimulus, reading, knee_counts: float = KNEE_COUNTS, min_stimulus: float = 0.02,
                 passes: int = 3) -> dict:
     """Gain (counts per unit stimulus), offset (counts) and residual sd of each track's
     linear response, from the stimuli at which the response lies below ``knee_counts``: well
@@ -652,7 +657,8 @@ def light_sweep(stimulus, reading, knee_counts: float = 600.0, min_stimulus: flo
 KNEE_GRID = 6.0 * 2.0 ** (np.arange(-9, 22) / 6.0)
 
 
-def sensor_knee(stimulus, reading, gain, offset, knee_counts: float = 600.0, ceiling: float = LIGHT_READING_MAX) -> float:
+def sensor_knee(stimulus, reading, gain, offset, knee_counts: float = KNEE_COUNTS,
+                ceiling: float = LIGHT_READING_MAX) -> float | None:
     """How the sensors bend towards their ceiling, as the twin's soft clip y / (1 + (y / c)^p)^(1/p)
     (``SensorModel.knee`` = p; 0 for a hard clip at c): the p of :data:`KNEE_GRID` (or the hard
     clip) whose bend fits the readings best (least squares) where each track's line from below

@@ -25,10 +25,10 @@ from .observe import Observation, correlated_noise, jittered_times, noisy_positi
 
 # The twin's nominal robot (what the base model assumes where it does not fit the data).
 NOMINAL_MOTION_NOISE = {"sigma_omega": 0.01, "sigma_v": 0.0005}
-#: (a robot's offset also shifts from trial to trial, by 4 counts: ambient light and temperature)
 #: The twin's sensor bend towards its ceiling (``SensorModel.knee``; p = 6 matches the paper's
 #: Fig. 8b by eye).
 SENSOR_KNEE = 6.0
+#: (a robot's offset also shifts from trial to trial, by 4 counts: ambient light and temperature)
 NOMINAL_SENSOR = {"sensor_gain": 2.2, "sensor_offset": 5.0, "sensor_noise": 8.0, "sensor_offset_trial_sd": 4.0}
 FORWARD_SPEED_M_S = 0.06 * 48 / 255
 TURN_RATE_SD_RAD_S = 0.008  # paper: heading-bias spread in turn rate
