@@ -17,6 +17,7 @@ from kilobot_twin.ros.convert import CLOUD_DTYPE
 from kilobot_twin.ros.launcher import run_twin
 from kilobot_twin.core.scenarios import load_swarm_traits, named_scenario
 
+from ..conftest import own_domain
 from ..ros.test_bag import rerun_check, rosbags_messages
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -222,19 +223,11 @@ def test_recorder_node_refuses_an_existing_bag(tmp_path):
     assert {p.name: p.read_bytes() for p in old.iterdir()} == before
 
 
-def own_domain(first: int) -> str:
-    """A DDS domain of this run's own, from ``first`` up to 232 (Fast DDS's highest: its ports for
-    233 and above overflow, "Calculated port number is too high"), spread by the run's domain so
-    that parallel runs differ. It was ``% 100 + 140``: up to 239, so 7 in 100 runs (a domain or a
-    pid ending in 93..99) failed the DDS test."""
-    return str(first + int(ENV.get("ROS_DOMAIN_ID", "100")) % (233 - first))
-
-
 def _group_sigint_try(tmp_path, k: int) -> tuple[int, list, bool, str]:
     """World, swarm, analysis and recorder in one new process group (as a script or CI starts them),
     then SIGINT to the whole group, twice (a terminal's Ctrl-C and launch's own SIGINT)."""
     out = tmp_path / f"grp{k}"
-    env = dict(ENV, ROS_DOMAIN_ID=own_domain(120))
+    env = dict(ENV, ROS_DOMAIN_ID=own_domain(1))
     args = {"recorder": ["-p", f"out:={out}"],
             "analysis": [],
             "world": ["-p", "robots:=3", "-p", "mode:=realtime", "-p", "duration_s:=60.0", "-p", "scenario:=blink",
@@ -369,7 +362,7 @@ def test_bag_holds_the_bytes_a_dds_subscriber_receives_and_unread_topics_skip_dd
     from rosbags.rosbag2 import Reader
 
     out, probe_file, stats = tmp_path / "bag", tmp_path / "probe.json", tmp_path / "swarm.json"
-    env = dict(ENV, ROS_DOMAIN_ID=own_domain(140))
+    env = dict(ENV, ROS_DOMAIN_ID=own_domain(2))
     cmds = {"recorder": ["-m", "kilobot_twin.nodes.recorder", "--ros-args", "-p", f"out:={out}"],
             "probe": ["-c", PROBE, str(probe_file), "0,3"],
             "world": ["-m", "kilobot_twin.nodes.world", "--ros-args", "-p", "robots:=5", "-p", "duration_s:=10.0",
