@@ -620,15 +620,19 @@ def light_sweep(stimulus, reading, knee_counts: float = KNEE_COUNTS, min_stimulu
     ok = np.isfinite(reading) & np.isfinite(stimulus) & (stimulus > min_stimulus)
     use = ok & (reading < knee_counts)
     s_all = np.where(ok, stimulus, 0.0)
+    r_all = np.where(ok, reading, 0.0)
 
     def line(use):
-        w = use.astype(float)
-        n = w.sum(-1)
-        s = np.where(use, stimulus, 0.0)
-        r = np.where(use, reading, 0.0)
-        ms, mr = s.sum(-1) / np.maximum(n, 1), r.sum(-1) / np.maximum(n, 1)
-        cov = (w * (s - ms[..., None]) * (r - mr[..., None])).sum(-1)
-        var = (w * (s - ms[..., None]) ** 2).sum(-1)
+        # From the sums of s, r, s^2 and s r over the samples in use (a pass each, no centred
+        # temporaries the size of the sweeps: 2x faster). A sweep's stimuli spread over much of
+        # their range, so taking the means off afterwards loses a digit or two of 16.
+        s = np.where(use, s_all, 0.0)
+        r = np.where(use, r_all, 0.0)
+        n = np.count_nonzero(use, axis=-1).astype(float)
+        nn = np.maximum(n, 1)
+        ms, mr = s.sum(-1) / nn, r.sum(-1) / nn
+        var = np.maximum(np.einsum("...t,...t->...", s, s) - n * ms * ms, 0.0)
+        cov = np.einsum("...t,...t->...", s, r) - n * ms * mr
         gain = cov / np.maximum(var, 1e-12)
         return gain, mr - gain * ms, n, ms, var
 
@@ -638,7 +642,7 @@ def light_sweep(stimulus, reading, knee_counts: float = KNEE_COUNTS, min_stimulu
             below = offset[..., None] + gain[..., None] * s_all < knee_counts
         nxt = ok & below
         # (a line that has no 5 samples below the knee, or none at all, keeps the previous choice)
-        keep = (nxt.sum(-1) >= 5) & np.isfinite(gain)
+        keep = (np.count_nonzero(nxt, axis=-1) >= 5) & np.isfinite(gain)
         use = np.where(keep[..., None], nxt, use)
         gain, offset, n, ms, var = line(use)
     resid = np.where(use, reading - (offset[..., None] + gain[..., None] * stimulus), 0.0)
