@@ -217,8 +217,7 @@ def sense(intensity, gain, offset, noise_sd, keys, counter, model: SensorModel =
     """
     y = sensor_response(intensity, gain, offset, model)
     if np.any(noise_sd > 0):
-        z, _ = rng.normal_pair(keys, counter)
-        y = y + z * (noise_sd / np.sqrt(model.samples))
+        y = y + rng.normal(keys, counter) * (noise_sd / np.sqrt(model.samples))
     return np.floor(np.clip(y, 0.0, model.ceiling))
 
 

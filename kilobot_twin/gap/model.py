@@ -146,8 +146,9 @@ def sweep_readings(sc, swarm: SwarmTraits, seed: int, runs, trials, stimulus) ->
     v = np.nan_to_num(np.asarray(stimulus, dtype=float), nan=0.0)
     out = np.empty(v.shape)
     for j in range(0, v.shape[-1], _FRAMES_AT_ONCE):  # frames in blocks: vectorised, in bounded memory
-        f = np.arange(j, min(j + _FRAMES_AT_ONCE, v.shape[-1]))
-        out[..., f] = light.sense(sc.light.peak * v[..., f], gain, offset, noise, keys, f, sc.sensor)
+        f = slice(j, min(j + _FRAMES_AT_ONCE, v.shape[-1]))
+        out[..., f] = light.sense(sc.light.peak * v[..., f], gain, offset, noise, keys, np.arange(f.start, f.stop),
+                                  sc.sensor)
     return out
 
 

@@ -107,3 +107,6 @@ def test_counters_given_as_an_array_draw_what_one_call_per_counter_draws():
         a, b = rng.normal_pair(keys[..., 0], int(c))
         assert np.array_equal(z1[..., j], a) and np.array_equal(z2[..., j], b)
         assert np.array_equal(u[..., j], rng.uniform(keys[..., 0], int(c)))
+        # the one-normal draw (the light sensor's) is the pair's first, bit for bit
+        assert np.array_equal(rng.normal(keys[..., 0], int(c)), a)
+    assert np.array_equal(rng.normal(keys, counters), z1)
