@@ -103,11 +103,7 @@ def normal_pair(keys: np.ndarray, counter) -> tuple[np.ndarray, np.ndarray]:
     One 64-bit hash gives both uniforms (its two 32-bit halves), which halves the hashing;
     the price is that tails are cut at sqrt(2 ln 2^32) = 6.66 sigma (probability 3e-11).
     """
-    z = mix64(keys + _offset(counter))
-    u1 = ((z >> _S32).astype(np.float64) + 0.5) * _TO_UNIT32
-    u2 = (z & _LOW32).astype(np.float64) * _TO_UNIT32
-    r = np.sqrt(-2.0 * libm.log(u1))
-    a = (2.0 * np.pi) * u2
+    r, a = _radius_angle(keys, counter)
     return r * np.cos(a), r * np.sin(a)
 
 
@@ -115,10 +111,17 @@ def normal(keys: np.ndarray, counter) -> np.ndarray:
     """The first of :func:`normal_pair`'s two normals, bit for bit, without computing the second
     (a sine and a product fewer: the light sensor's reading noise, drawn for many frames at
     once, uses one)."""
+    r, a = _radius_angle(keys, counter)
+    return r * np.cos(a)
+
+
+def _radius_angle(keys: np.ndarray, counter) -> tuple[np.ndarray, np.ndarray]:
+    """Box-Muller's radius and angle from one 64-bit hash per key and counter (its two 32-bit
+    halves as the two uniforms)."""
     z = mix64(keys + _offset(counter))
     u1 = ((z >> _S32).astype(np.float64) + 0.5) * _TO_UNIT32
     u2 = (z & _LOW32).astype(np.float64) * _TO_UNIT32
-    return np.sqrt(-2.0 * libm.log(u1)) * np.cos((2.0 * np.pi) * u2)
+    return np.sqrt(-2.0 * libm.log(u1)), (2.0 * np.pi) * u2
 
 
 def generator(seed: int, *spawn_key: int) -> np.random.Generator:

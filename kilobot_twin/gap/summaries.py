@@ -624,7 +624,7 @@ def light_sweep(stimulus, reading, knee_counts: float = KNEE_COUNTS, min_stimulu
 
     def line(use):
         # From the sums of s, r, s^2 and s r over the samples in use (a pass each, no centred
-        # temporaries the size of the sweeps: 2x faster). A sweep's stimuli spread over much of
+        # temporaries the size of the sweeps: 1.6x faster). A sweep's stimuli spread over much of
         # their range, so taking the means off afterwards loses a digit or two of 16.
         s = np.where(use, s_all, 0.0)
         r = np.where(use, r_all, 0.0)
