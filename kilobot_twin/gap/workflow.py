@@ -562,7 +562,9 @@ def _loglik_per_robot(meas, pred, comps):
     return ll  # (N,)
 
 
-_SQRT_2PI = np.sqrt(2 * np.pi)
+def _normal_pdf(x):
+    """The standard normal's density (scipy.stats.norm.pdf's expression, without its per-call checks)."""
+    return np.exp(-x**2 / 2.0) / np.sqrt(2 * np.pi)
 
 
 def resampled_excess(z, v):
@@ -582,7 +584,7 @@ def resampled_excess(z, v):
         ok = s > 0
         s1 = np.where(ok, s, 1.0)
         a, b = (-k - z) / s1, (k - z) / s1
-        Fa, Fb, fa, fb = ndtr(a), ndtr(b), np.exp(-a**2 / 2.0) / _SQRT_2PI, np.exp(-b**2 / 2.0) / _SQRT_2PI
+        Fa, Fb, fa, fb = ndtr(a), ndtr(b), _normal_pdf(a), _normal_pdf(b)
         quad = z * z * (Fb - Fa) + 2 * z * s1 * (fa - fb) + s1 * s1 * ((Fb - Fa) + a * fa - b * fb)
         lin = 2 * k * (z * (1 - Fb) + s1 * fb - z * Fa + s1 * fa) - k * k * ((1 - Fb) + Fa)
         return np.where(ok, quad + lin - deviance(z), 0.0)
