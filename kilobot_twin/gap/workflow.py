@@ -875,7 +875,7 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         if round_ == 0:
             tests = [f["signal"] for f in found]
             mde = minimum_detectable(kind, meas, null, cond.trials, gs.alpha, seed=child_seed(gs.seed, "power"), base=model,
-                                     gain_level=gs.gain_level,
+                                     gain_level=gs.gain_level, threads=gs.threads,
                                      sensitivity=summary_sensitivity(cond, model, child_seed(gs.seed, "sensitivity")))
         flagged = [f for f in found if f["flagged"]]
         for f in flagged:
@@ -1077,7 +1077,7 @@ def summary_sensitivity(cond: Conditions, model: E.TwinModel, seed: int, M: int 
 
 def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: float, power: float = 0.8,
                        seed: int = 0, base: E.TwinModel | None = None, gain_level: float = GAIN_LEVEL,
-                       sensitivity: dict | None = None) -> dict:
+                       sensitivity: dict | None = None, threads: int = 1) -> dict:
     """The smallest between-robot spread of each effect that this dataset (its robots, trials,
     gaps, noise) would have named with ``power``: ``size``, and ``detection_size``, the smallest
     the detection step alone flags with ``power``. A spread is that of the dataset's own robots
@@ -1199,7 +1199,8 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         # estimates cost held-out likelihood where robots do not differ in them.
         companions = [np.isfinite(meas[c]) for c in E.LIBRARY[effect].predicts if c != comp and c in meas]
         pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0 + shift, seed=seed, noise=noise,
-                          gain_level=gain_level, dof=dof, rival_threshold=rival, companions=companions)
+                          gain_level=gain_level, dof=dof, rival_threshold=rival, companions=companions,
+                          threads=threads)
         tau = _first_crossing(taus, pw, power)
         per_size = 1.0 if noise is not None else float((sensitivity or {}).get(comp, 1.0))
         scale /= per_size
@@ -1227,7 +1228,8 @@ def _first_crossing(x, y, level):
 
 def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, threshold: float, reps: int = 200,
                  boot: int = 200, seed: int = 0, noise: tuple | None = None, gain_level: float = GAIN_LEVEL,
-                 dof: float | None = None, rival_threshold: float | None = None, companions=()) -> np.ndarray:
+                 dof: float | None = None, rival_threshold: float | None = None, companions=(),
+                 threads: int = 1) -> np.ndarray:
     """Probability that a between-robot effect of spread ``tau`` (each of ``taus``) is flagged
     and named, by emulation in summary space: per replicate, each robot's trial summaries are
     its own level (sd tau over the replicate's robots, exactly; a drift: its own slope over
@@ -1249,7 +1251,8 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     the third world's offsets was the Monte Carlo error that :func:`effects.smooth_over_robots`
     removes). Their noise is normal; the cost does not depend on its scale. Where robots do differ in them, the effect
     gains there too, so the size stated is the one that holds when they do not.
-    Common random numbers across ``taus``, so the curve is smooth in tau.
+    Common random numbers across ``taus``, so the curve is smooth in tau; ``threads`` of them are
+    emulated at once, with the same result.
 
     ``noise = (level, f)``: robots that differ in a noise intensity (a variance, never negative),
     ``taus`` the sd over robots of the log of its square root (ln sigma_omega). The noise's share
@@ -1328,8 +1331,8 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     null_mean = float(np.nanmean(stat(shift + x0)))
     if drift and rival_threshold is not None:
         between_null = float(np.nanmean(_f_between(x0)))
-    out = []
-    for tau in taus:
+
+    def power_at(tau):
         x = emulated(tau)
         flagged = stat(shift + x) - null_mean > threshold
         gain, rival = _heldout_gain(x, drift, base_absorbs, noise=None if noise is None else (*noise, s_w2))
@@ -1341,8 +1344,14 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
             if rival_threshold is not None:  # the heading bias competes where robots' means differ
                 beats |= ~(_f_between(x) - between_null > rival_threshold)
             named &= beats
-        out.append(float(np.mean(named)))
-    return np.array(out)
+        return float(np.mean(named))
+
+    # Every random number is drawn above, so each tau's power is a function of tau alone and
+    # the sizes do not depend on ``threads``; NumPy's array work releases the GIL.
+    if threads <= 1:
+        return np.array([power_at(tau) for tau in taus])
+    with ThreadPoolExecutor(threads) as pool:
+        return np.array(list(pool.map(power_at, taus)))
 
 
 def _heldout_gain(x, drift: bool, base_absorbs: bool, noise: tuple | None = None):

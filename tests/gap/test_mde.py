@@ -123,14 +123,15 @@ def test_an_effects_other_summaries_cost_it_as_the_loop_through_the_naming_rule_
     assert p[0] < p0[0], (p, p0)
 
 
-@pytest.mark.parametrize("base_absorbs, noise", [(False, None), (True, None), (False, (1.5, 0.6))])
-def test_naming_power_against_a_loop_through_the_naming_rule(base_absorbs, noise):
+@pytest.mark.parametrize("base_absorbs, noise, threads", [(False, None, 1), (True, None, 2), (False, (1.5, 0.6), 2)])
+def test_naming_power_against_a_loop_through_the_naming_rule(base_absorbs, noise, threads):
     """naming_power (vectorised emulation) against a second implementation that loops over
     robots and folds and names through decide(), on the same draws (naming_power documents their
     order: noise, the robots' effects, then one set of bootstrap indices, which decide draws
     again from the same generator state): the same datasets named. 12 robots x 4 trials, one
     robot missing from a trial, at a spread where about half are named (where a mistake shows).
-    Also: no effect, (almost) never named; a large one, always."""
+    Also: no effect, (almost) never named; a large one, always. ``threads``: the spreads emulated
+    at once, as the workflow does (``GapSettings.threads``)."""
     from kilobot_twin.gap.workflow import _f_between, naming_power
 
     K, N, s_w2, thr, tau, R, seed = 4, 12, 1.0, 0.5, 0.8, 200, 4
@@ -139,7 +140,7 @@ def test_naming_power_against_a_loop_through_the_naming_rule(base_absorbs, noise
     if noise is not None:
         tau = 0.25  # sd of ln sigma_omega (the noisier robots scatter more)
     p = naming_power(seen, s_w2, [0.0, tau, 10.0 if noise is None else 0.7], False, base_absorbs, thr, reps=R,
-                     seed=seed, noise=noise)
+                     seed=seed, noise=noise, threads=threads)
     # (noise intensities much further apart are carried by one or two robots: the bootstrap over
     # robots then often leaves them out, and such a spread is not always named: power peaks near
     # 0.7 in ln sigma_omega here and falls to 0.4 at 2)
@@ -249,8 +250,8 @@ def _drift_gains_by_loop(x):
     return line, mean
 
 
-@pytest.mark.parametrize("rival_threshold", [None, -1.0, np.inf])
-def test_drift_naming_power_against_a_loop_through_the_naming_rule(rival_threshold):
+@pytest.mark.parametrize("rival_threshold, threads", [(None, 2), (-1.0, 1), (np.inf, 1)])
+def test_drift_naming_power_against_a_loop_through_the_naming_rule(rival_threshold, threads):
     """naming_power for a drift against a second implementation: the emulated robots differ in
     slope only, each line through the robot's own mean over its trials (a drift is not a
     heading bias: lines through a common start would also spread the robots' levels, which the
@@ -271,7 +272,8 @@ def test_drift_naming_power_against_a_loop_through_the_naming_rule(rival_thresho
     seen = np.ones((K, N), bool)
     seen[0, 3] = seen[4, 8] = False
     taus = [0.0, 0.9, 5.0]
-    p = naming_power(seen, s_w2, taus, True, True, thr, reps=R, seed=seed, rival_threshold=rival_threshold)
+    p = naming_power(seen, s_w2, taus, True, True, thr, reps=R, seed=seed, rival_threshold=rival_threshold,
+                     threads=threads)
     assert p[0] <= 0.05 and p[2] == 1.0, p
     rng = np.random.default_rng(seed)
     eps = rng.normal(0.0, np.sqrt(s_w2), (R, K, N))
