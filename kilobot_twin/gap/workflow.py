@@ -1200,7 +1200,7 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         companions = [np.isfinite(meas[c]) for c in E.LIBRARY[effect].predicts if c != comp and c in meas]
         pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0 + shift, seed=seed, noise=noise,
                           gain_level=gain_level, dof=dof, rival_threshold=rival, companions=companions,
-                          threads=threads)
+                          threads=threads, stop_at=power)
         tau = _first_crossing(taus, pw, power)
         per_size = 1.0 if noise is not None else float((sensitivity or {}).get(comp, 1.0))
         scale /= per_size
@@ -1229,7 +1229,7 @@ def _first_crossing(x, y, level):
 def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, threshold: float, reps: int = 200,
                  boot: int = 200, seed: int = 0, noise: tuple | None = None, gain_level: float = GAIN_LEVEL,
                  dof: float | None = None, rival_threshold: float | None = None, companions=(),
-                 threads: int = 1) -> np.ndarray:
+                 threads: int = 1, stop_at: float | None = None) -> np.ndarray:
     """Probability that a between-robot effect of spread ``tau`` (each of ``taus``) is flagged
     and named, by emulation in summary space: per replicate, each robot's trial summaries are
     its own level (sd tau over the replicate's robots, exactly; a drift: its own slope over
@@ -1252,7 +1252,9 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     removes). Their noise is normal; the cost does not depend on its scale. Where robots do differ in them, the effect
     gains there too, so the size stated is the one that holds when they do not.
     Common random numbers across ``taus``, so the curve is smooth in tau; ``threads`` of them are
-    emulated at once, with the same result.
+    emulated at once, with the same result. ``stop_at``: the taus after the first whose power
+    reaches it (and after the others emulated with it) are not emulated; their powers are NaN. A
+    first crossing of that power (:func:`_first_crossing`) is the same as on the whole curve.
 
     ``noise = (level, f)``: robots that differ in a noise intensity (a variance, never negative),
     ``taus`` the sd over robots of the log of its square root (ln sigma_omega). The noise's share
@@ -1347,11 +1349,17 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
         return float(np.mean(named))
 
     # Every random number is drawn above, so each tau's power is a function of tau alone and
-    # the sizes do not depend on ``threads``; NumPy's array work releases the GIL.
-    if threads <= 1:
-        return np.array([power_at(tau) for tau in taus])
-    with ThreadPoolExecutor(threads) as pool:
-        return np.array(list(pool.map(power_at, taus)))
+    # the sizes do not depend on ``threads``; NumPy's array work releases the GIL. In order,
+    # ``threads`` at a time, up to the first that reaches ``stop_at``.
+    taus = list(taus)
+    out = np.full(len(taus), np.nan)
+    with ThreadPoolExecutor(max(1, threads)) as pool:
+        for i in range(0, len(taus), max(1, threads)):
+            part = taus[i:i + max(1, threads)]
+            out[i:i + len(part)] = list(pool.map(power_at, part)) if len(part) > 1 else [power_at(part[0])]
+            if stop_at is not None and np.any(out[i:i + len(part)] >= stop_at):
+                break
+    return out
 
 
 def _heldout_gain(x, drift: bool, base_absorbs: bool, noise: tuple | None = None):

@@ -416,6 +416,29 @@ def test_a_size_stated_from_one_datasets_variance_is_named_in_80_percent_of_fres
     assert fresh == pytest.approx(0.8, abs=0.014), fresh
 
 
+@pytest.mark.parametrize("threads", [1, 2])
+def test_the_emulation_stops_after_the_power_it_looks_for_with_the_same_crossing(threads):
+    """``stop_at`` (what minimum_detectable passes: the power it reads the size at) leaves the taus
+    after the first that reaches it unemulated (NaN; with threads, after the pair it was in); the
+    ones before are the whole curve's to the bit, and so is the size read off them. Robots that
+    differ in noise, 12 x 4 with a gap, the spreads of minimum_detectable's grid."""
+    from kilobot_twin.gap.workflow import _first_crossing, naming_power
+
+    seen = np.ones((4, 12), bool)
+    seen[1, 7] = False
+    taus = 0.1 * np.geomspace(0.7, 16.0, 20)
+    args = (seen, 1.0, taus, False, False, 0.5)
+    kw = dict(reps=100, seed=11, noise=(1.5, 0.6))
+    whole = naming_power(*args, **kw)
+    cut = naming_power(*args, **kw, threads=threads, stop_at=0.8)
+    j = int(np.argmax(whole >= 0.8))
+    assert whole[j] >= 0.8 and j + threads < len(taus), whole  # a crossing inside the grid
+    done = j + 1 if threads == 1 else min(len(taus), (j // threads + 1) * threads)
+    np.testing.assert_array_equal(cut[:done], whole[:done])
+    assert np.isnan(cut[done:]).all() and done < len(taus)
+    assert _first_crossing(taus, cut, 0.8) == _first_crossing(taus, whole, 0.8)
+
+
 def test_minimum_detectable_hands_the_emulation_its_variances_degrees_of_freedom(monkeypatch):
     """The within-robot variance of a blink dataset's toggle rates (12 robots x 4 trials, one
     robot missing from one trial) has 12 x 3 - 1 = 35 degrees of freedom; the emulation is told."""
