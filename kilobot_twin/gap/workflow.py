@@ -1351,13 +1351,12 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     # Every random number is drawn above, so each tau's power is a function of tau alone and
     # the sizes do not depend on ``threads``; NumPy's array work releases the GIL. In order,
     # ``threads`` at a time, up to the first that reaches ``stop_at``.
-    taus = list(taus)
+    taus, step = list(taus), max(1, threads)
     out = np.full(len(taus), np.nan)
-    with ThreadPoolExecutor(max(1, threads)) as pool:
-        for i in range(0, len(taus), max(1, threads)):
-            part = taus[i:i + max(1, threads)]
-            out[i:i + len(part)] = list(pool.map(power_at, part)) if len(part) > 1 else [power_at(part[0])]
-            if stop_at is not None and np.any(out[i:i + len(part)] >= stop_at):
+    with ThreadPoolExecutor(step) as pool:
+        for i in range(0, len(taus), step):
+            out[i:i + step] = list(pool.map(power_at, taus[i:i + step]))
+            if stop_at is not None and np.any(out[i:i + step] >= stop_at):
                 break
     return out
 
