@@ -105,7 +105,15 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
             # simulated instead, and a correlated error besides it is not fitted.
             noise = summaries.lattice_noise(x, y, lattice, ds.dt_s)
             corr = {"white_m": noise, "correlated_m": 0.0, "tau_s": 0.0}
-        x, y = summaries.mask_before_onset(x, y, float(np.hypot(noise, pixel)))
+        # A robot at rest before its start seems to wander by the tracker's whole error, the part
+        # that persists over frames too: its onset is read against all of it. Against the
+        # independent part alone, a tracker correlated over 0.26 s (3 mm, beside 2.4 mm
+        # independent) let a resting robot's frames into its track: its trial's speed read low by
+        # up to its late start over the trial's length, the speed's within-robot variance came
+        # out 2.2x what it is without late starts (3.3e-8 against 1.5e-8 m^2/s^2, independent
+        # world 3098's levels, 30 realisations; 1.6e-8 read against the whole error) and
+        # scattered from one realisation to the next 1.33x as much as its degrees of freedom say.
+        x, y = summaries.mask_before_onset(x, y, float(np.hypot(np.hypot(noise, corr["correlated_m"]), pixel)))
         x, y = x[..., ::q], y[..., ::q]
         observed = np.isfinite(x)
         cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed, _start_poses(x, y, dt_s),
