@@ -109,10 +109,10 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         # that persists over frames too: its onset is read against all of it. Against the
         # independent part alone, a tracker correlated over 0.26 s (3 mm, beside 2.4 mm
         # independent) let a resting robot's frames into its track: its trial's speed read low by
-        # up to its late start over the trial's length, the speed's within-robot variance came
-        # out 2.2x what it is without late starts (3.3e-8 against 1.5e-8 m^2/s^2, independent
-        # world 3098's levels, 30 realisations; 1.6e-8 read against the whole error) and
-        # scattered from one realisation to the next 1.33x as much as its degrees of freedom say.
+        # up to its late start over the trial's length, and the speed's within-robot variance
+        # came out 2.2x what it is without late starts (median over 30 realisations of
+        # independent world 3098's levels: 3.3e-8 against 1.5e-8 m^2/s^2; read against the
+        # whole error, 1.6e-8).
         x, y = summaries.mask_before_onset(x, y, float(np.hypot(np.hypot(noise, corr["correlated_m"]), pixel)))
         x, y = x[..., ::q], y[..., ::q]
         observed = np.isfinite(x)

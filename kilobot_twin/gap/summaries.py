@@ -580,8 +580,9 @@ def mask_before_onset(x, y, noise_m: float, move_m: float = 0.004):
 
     Onset: the first sample farther than ``move_m + 4 noise_m`` from the track's first observed
     position; ``noise_m``: the sd of the tracker's whole error (the part correlated over frames
-    too: a resting robot seems to wander by it). Applied to measured tracks only; the simulated twin then sees the same missing
-    samples (the workflow's mask), so both are summarised over the same moving part."""
+    too: a resting robot seems to wander by it). Applied to measured tracks only; the simulated
+    twin then sees the same missing samples (the workflow's mask), so both are summarised over
+    the same moving part."""
     first_i = np.argmax(np.isfinite(x), axis=-1)[..., None]
     x0 = np.take_along_axis(x, first_i, -1)
     y0 = np.take_along_axis(y, first_i, -1)
