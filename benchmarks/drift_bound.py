@@ -36,7 +36,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from kilobot_twin.gap.model import measured_summaries
-from kilobot_twin.gap.workflow import GapSettings, statistics
+from kilobot_twin.gap.workflow import GapSettings, about_lines, statistics
 from kilobot_twin.recording import measured
 
 EARLIER_DRIFT = 0.0045  # rad/s per trial, the earlier gap issue's drift
@@ -48,21 +48,6 @@ def _indep_world():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
-
-
-def about_lines(x):
-    """Turn rates (K, N) -> (residual variance about each robot's line over its trials, its degrees
-    of freedom, mean S_kk over robots)."""
-    K = x.shape[0]
-    seen = np.isfinite(x)
-    k = np.arange(K, dtype=float)[:, None]
-    kb = np.where(seen, k, 0.0).sum(0) / np.maximum(seen.sum(0), 1)
-    dk = np.where(seen, k - kb, 0.0)
-    skk = (dk**2).sum(0)
-    dev = np.where(seen, x - np.nanmean(x, axis=0), 0.0)
-    slope = (dk * dev).sum(0) / np.maximum(skk, 1e-300)
-    dof = int((seen.sum(0) - 2).clip(0).sum())
-    return float(((dev - slope * dk) ** 2).sum() / dof), dof, float(skk.mean())
 
 
 def ratio_for_power(N: int, dof: int | None, alpha: float, power: float = POWER) -> float:

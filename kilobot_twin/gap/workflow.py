@@ -1131,15 +1131,8 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         with np.errstate(all="ignore"):
             seen = np.isfinite(x)
             if drift:
-                k = np.arange(trials, dtype=float)[:, None]
-                kb = (np.where(seen, k, 0).sum(0)) / np.maximum(seen.sum(0), 1)
-                dk = np.where(seen, k - kb, 0.0)
-                k_eff = float(np.mean((dk**2).sum(0)))
                 # Within-robot variance about each robot's line (a drift, if any, is not noise).
-                dev = np.where(seen, x - np.nanmean(x, axis=0), 0.0)
-                slope = (dk * dev).sum(0) / np.maximum((dk**2).sum(0), 1e-12)
-                dof = int((seen.sum(0) - 2).clip(0).sum())
-                s_w2 = float(((dev - slope * dk) ** 2).sum() / max(dof, 1))
+                s_w2, dof, k_eff = about_lines(x)
             elif effect == "motion_noise":
                 k_eff = float(np.nanmean(seen.sum(0)))
                 # Robots that differ in noise scatter within themselves by more than the
@@ -1212,6 +1205,22 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             v = float(np.nanmean(null["speed"]))
             out[effect]["heading_bias_sd"] = float(abs(heading_bias_from_turn_rate(named, v)))
     return out
+
+
+def about_lines(x):
+    """Each robot's line over its trials, x (K, N) with gaps: the residual variance about the
+    lines (pooled), its degrees of freedom (a robot's observed trials less 2, summed) and the
+    mean over robots of S_kk, the sum of squared trial offsets about the robot's mean trial (a
+    robot's slope has the variance residual / S_kk)."""
+    with np.errstate(all="ignore"):
+        seen = np.isfinite(x)
+        k = np.arange(x.shape[0], dtype=float)[:, None]
+        kb = (np.where(seen, k, 0).sum(0)) / np.maximum(seen.sum(0), 1)
+        dk = np.where(seen, k - kb, 0.0)
+        dev = np.where(seen, x - np.nanmean(x, axis=0), 0.0)
+        slope = (dk * dev).sum(0) / np.maximum((dk**2).sum(0), 1e-12)
+        dof = int((seen.sum(0) - 2).clip(0).sum())
+        return float(((dev - slope * dk) ** 2).sum() / max(dof, 1)), dof, float(np.mean((dk**2).sum(0)))
 
 
 def _first_crossing(x, y, level):

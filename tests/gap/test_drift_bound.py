@@ -1,12 +1,15 @@
 """benchmarks/drift_bound.py: the smallest drift a test at the workflow's level flags with 80 %
 power, checked against a Monte Carlo of the tests written out (normal trial values, drifts of
-exactly the stated sd), and its residual about robots' lines against a hand computation."""
+exactly the stated sd), and the residual about robots' lines it reads (``workflow.about_lines``, which
+``minimum_detectable`` reads the drift's noise with) against a hand computation."""
 
 import importlib.util
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from kilobot_twin.gap.workflow import about_lines
 
 _spec = importlib.util.spec_from_file_location("drift_bound", Path(__file__).parents[2] / "benchmarks" / "drift_bound.py")
 db = importlib.util.module_from_spec(_spec)
@@ -34,7 +37,7 @@ def test_residual_about_lines_by_hand():
     # -0.2, 0.6, -0.6, 0.2, sum of squares 0.8; robot 2 misses trial 3: 1, 2, 4 about 0.833 + 1.5 k:
     # residuals 1/6, -1/3, 1/6, sum of squares 1/6. dof (4 - 2) + (4 - 2) + (3 - 2) = 5.
     x = np.array([[1.0, 0.0, 1.0], [2.0, 1.0, 2.0], [3.0, 0.0, 4.0], [4.0, 1.0, np.nan]])
-    var, dof, skk = db.about_lines(x)
+    var, dof, skk = about_lines(x)
     assert dof == 5
     assert var == pytest.approx((0.8 + 1 / 6) / 5, rel=1e-12)
     assert skk == pytest.approx((5.0 + 5.0 + 2.0) / 3, rel=1e-12)
