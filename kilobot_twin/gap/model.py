@@ -113,7 +113,7 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         # came out 2.2x what it is without late starts (median over 30 realisations of
         # independent world 3098's levels: 3.3e-8 against 1.5e-8 m^2/s^2; read against the
         # whole error, 1.6e-8).
-        x, y = summaries.mask_before_onset(x, y, float(np.hypot(np.hypot(noise, corr["correlated_m"]), pixel)))
+        x, y = summaries.mask_before_onset(x, y, whole_tracking_error(corr["white_m"], corr["correlated_m"], lattice))
         x, y = x[..., ::q], y[..., ::q]
         observed = np.isfinite(x)
         cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed, _start_poses(x, y, dt_s),
@@ -164,10 +164,15 @@ def sweep_readings(sc, swarm: SwarmTraits, seed: int, runs, trials, stimulus) ->
 _FRAMES_AT_ONCE = 64
 
 
-def total_tracking_noise(cond: Conditions) -> float:
+def whole_tracking_error(white_m: float, correlated_m: float, lattice=None) -> float:
     """The tracker's whole position noise sd: the independent and the correlated parts, and the
     pixel grid's."""
-    return float(np.hypot(np.hypot(cond.tracking_noise_m, cond.tracking_correlated_m), summaries.lattice_sd(cond.lattice)))
+    return float(np.hypot(np.hypot(white_m, correlated_m), summaries.lattice_sd(lattice)))
+
+
+def total_tracking_noise(cond: Conditions) -> float:
+    """:func:`whole_tracking_error` of the tracker the conditions were fitted with."""
+    return whole_tracking_error(cond.tracking_noise_m, cond.tracking_correlated_m, cond.lattice)
 
 
 def _start_poses(x, y, dt_s, lag_s=2.0):
