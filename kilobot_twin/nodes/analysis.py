@@ -27,6 +27,7 @@ from ..core.scenario import Scenario
 from ..recording import cdr, topics
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
+from ..ros.latched import LatchedReader
 from ..core.scenarios import parse_world_document, scenario_from_document
 
 PROG = "kilobot-twin analysis"
@@ -58,11 +59,12 @@ class AnalysisNode(Node):
         self.subscribed: set[str] = set()
         self.covered: set[int] = set()  # robots read from a swarm's cloud
         self._robot_subs: dict[int, list] = {}
+        self._members_readers: dict = {}  # a swarm's members topic -> its LatchedReader
         self.pub_time = self.create_publisher(Float64, "~/time_s", qos.DATA)
         self.pubs = {m: self.create_publisher(Float64, f"~/{m}", qos.DATA) for m in METRICS}
         self.pub_robots = self.create_publisher(UInt32, "~/robots", qos.DATA)
         self.latest: dict = {}
-        self.create_subscription(String, f"{self.world}/scenario", self._on_world, qos.LATCHED)
+        self.world_reader = LatchedReader(self, String, f"{self.world}/scenario", self._on_world)
         self.create_timer(0.25, self._discover)
 
     def _on_world(self, msg: String) -> None:
@@ -77,8 +79,8 @@ class AnalysisNode(Node):
             m = topics.SWARM_MEMBERS_TOPIC.match(topic)
             if m:
                 self.subscribed.add(topic)
-                self.create_subscription(String, topic, lambda msg, base=m.group(1): self._on_members(base, msg),
-                                         qos.LATCHED)
+                self._members_readers[topic] = LatchedReader(self, String, topic,
+                                                             lambda msg, base=m.group(1): self._on_members(base, msg))
                 continue
             parsed = topics.parse_robot_topic(topic)
             if not parsed or parsed[1] not in ("pose", "led", "clock") or parsed[0] in self.covered:

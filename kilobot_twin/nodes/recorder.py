@@ -37,6 +37,7 @@ from ..recording.topics import (BEST_EFFORT, DATA_QOS, RELIABLE, ROBOT_DATA, ROB
                                  SWARM_MEMBERS_TOPIC, TRANSIENT_LOCAL, VOLATILE, parse_robot_topic, qos_yaml,
                                  robot_namespace, swarm_bundle_topic)
 from ..ros.executors import run_node
+from ..ros.latched import LatchedReader
 
 PROG = "kilobot-twin recorder"
 #: Longest wait (s) for a swarm's member list before the robot topics of the graph are subscribed
@@ -81,6 +82,7 @@ class RecorderNode(Node):
         self.bundles = bool(params.declare(self, "bundles", True))
         self.covered: dict[int, str] = {}              # robot id -> swarm topic base
         self._members_pending: dict[str, float] = {}   # members topic subscribed, not heard -> since
+        self._members_readers: dict = {}  # a swarm's members topic -> its LatchedReader
         self._robot_subs: dict[int, list] = {}         # robot id -> its data subscriptions
         self._last: dict[tuple[int, str], bytes] = {}  # (robot, kind) -> last message written from its topic
         self._handover: dict[tuple[int, str], int] = {}  # (robot, kind) -> bundle items up to this stamp are in
@@ -101,8 +103,8 @@ class RecorderNode(Node):
                 m = SWARM_MEMBERS_TOPIC.match(topic)
                 if m and topic not in self._members_pending:
                     self._members_pending[topic] = time.monotonic()
-                    self.create_subscription(String, topic, lambda msg, base=m.group(1), t=topic:
-                                             self._on_members(base, t, msg), qos.LATCHED)
+                    self._members_readers[topic] = LatchedReader(
+                        self, String, topic, lambda msg, base=m.group(1), t=topic: self._on_members(base, t, msg))
         waiting = any(time.monotonic() - t < MEMBERS_WAIT_S for t in self._members_pending.values() if t)
         for topic, types in graph:
             if topic in self.channels or not self.wanted(topic) or not types:

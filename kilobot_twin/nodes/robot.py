@@ -32,6 +32,7 @@ from ..errors import ConfigError
 from ..recording.topics import robot_id_of_namespace
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
+from ..ros.latched import LatchedReader
 from ..ros.model import RobotModel, SwarmModel
 from ..ros.publishing import ReaderAwarePublisher
 from ..core.scenarios import clock_period_from_document, parse_world_document, scenario_from_document
@@ -108,8 +109,8 @@ class RobotNode(Node):
         self.clock_period_s = 0.0
         self.done = False
         if standalone:
-            self.create_subscription(String, f"{self.world}/scenario", self._on_world_msg, qos.LATCHED)
-            self.create_subscription(String, f"{self.world}/state", self._on_state_msg, qos.LATCHED)
+            self.world_reader = LatchedReader(self, String, f"{self.world}/scenario", self._on_world_msg)
+            self.state_reader = LatchedReader(self, String, f"{self.world}/state", self._on_state_msg)
             self.create_subscription(Clock, "/clock", self._on_clock_msg, qos.CLOCK)
 
     # --- inputs (called by subscriptions, or by the swarm node for its robots) ----------------

@@ -40,6 +40,7 @@ from ..errors import ConfigError
 from ..recording import cdr, topics
 from ..ros import convert, params, qos
 from ..ros.executors import make_executor, release, run_node, spin
+from ..ros.latched import LatchedReader
 from ..ros.model import SwarmModel
 from ..ros.stepping import StepRule
 from ..core.scenarios import (clock_period_from_document, load_swarm_traits, parse_world_document,
@@ -91,8 +92,8 @@ class SwarmNode(Node):
         self.cpu_start = time.process_time()
         self.rss_before_robots = _rss_bytes()
         self.rss_after_robots = 0
-        self.create_subscription(String, f"{self.world}/scenario", self._on_world, qos.LATCHED)
-        self.create_subscription(String, f"{self.world}/state", self._on_state, qos.LATCHED)
+        self.world_reader = LatchedReader(self, String, f"{self.world}/scenario", self._on_world)
+        self.state_reader = LatchedReader(self, String, f"{self.world}/state", self._on_state)
         self.create_subscription(Clock, "/clock", self._on_clock, qos.CLOCK)
         self.pub_members = self.pub_cloud = self.pub_bundle = None
         self.clock_period_s = 0.0  # from the world document

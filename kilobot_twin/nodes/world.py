@@ -49,13 +49,13 @@ from ..core.scenario import Scenario
 from ..recording import cdr, topics
 from ..ros import convert, params, qos
 from ..ros.executors import run_node, spin_node
+from ..ros.latched import LatchedReader
 from ..ros.stepping import LockstepPacer
 from ..core.scenarios import NAMED, named_scenario, scenario_file, world_document
 
 PROG = "kilobot-twin world"
 DATA_TOPICS = ("pose", "light", "led", "clock")
 SWARM_TOPICS = (topics.SWARM_CLOUD,)
-MEMBERS_RETRY_S = 3.0  # a swarm's member list not heard after this long: subscribe again
 
 
 class WorldNode(Node):
@@ -107,7 +107,7 @@ class WorldNode(Node):
         self.finished = Future()
         self.robots: dict[int, str] = {}  # id -> pose topic
         self.swarms: dict[str, set[int] | None] = {}  # swarm topic base -> its member ids (None: not yet heard)
-        self._members_subs: dict[str, tuple] = {}  # swarm topic base -> (subscription, topic, made at)
+        self._members_readers: dict[str, LatchedReader] = {}  # swarm topic base -> its member list's reader
         self.covered: set[int] = set()  # robots that a swarm's cloud reports for
         self._pose_subs: dict[int, object] = {}
         self._ack_progress_at = time.monotonic()
@@ -164,7 +164,6 @@ class WorldNode(Node):
             if m and m.group(1) not in self.swarms:
                 self.swarms[m.group(1)] = None
                 self._subscribe_members(m.group(1), topic)
-        self._resubscribe_unheard_members()
         waiting = self._gate_waits_for()
         now = time.monotonic()
         if waiting:
@@ -215,20 +214,9 @@ class WorldNode(Node):
         return ""
 
     def _subscribe_members(self, base: str, topic: str) -> None:
-        self._members_subs[base] = (self.create_subscription(
-            String, topic, lambda msg, base=base: self._on_members(base, msg), qos.LATCHED), topic, time.monotonic())
-
-    def _resubscribe_unheard_members(self) -> None:
-        """A swarm's member list is latched, and now and then a subscription made once the topic
-        is on the graph never delivers it (the recorder had it, the world waited 60 s for it: seen
-        in two full runs of the test suite). A subscription that has heard nothing after
-        ``MEMBERS_RETRY_S`` is made again: a new reader is sent the latched message anew."""
-        now = time.monotonic()
-        for base, (sub, topic, since) in list(self._members_subs.items()):
-            if self.swarms.get(base) is None and now - since >= MEMBERS_RETRY_S:
-                self.get_logger().warning(f"no member list on {topic} after {now - since:.0f} s: subscribing again")
-                self.destroy_subscription(sub)
-                self._subscribe_members(base, topic)
+        """A swarm's member list is latched: read it with :class:`LatchedReader` (made again while
+        the list is not heard; the world once waited 60 s for a list the recorder had)."""
+        self._members_readers[base] = LatchedReader(self, String, topic, lambda msg, base=base: self._on_members(base, msg))
 
     def _on_members(self, base: str, msg: String) -> None:
         if self.swarms.get(base) is not None or self.pacer.step >= 0:

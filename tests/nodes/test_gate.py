@@ -7,8 +7,10 @@ import time
 
 from kilobot_twin.nodes.swarm import SwarmNode
 from kilobot_twin.nodes.world import WorldNode
+from kilobot_twin.ros import latched
 from kilobot_twin.ros.launcher import Child, timeout_problem
 
+from ..ros.test_latched import drop_first_reader
 from .graph import Graph, overrides
 from .test_lockstep import Collector
 
@@ -60,30 +62,32 @@ def test_a_world_that_never_starts_says_why_on_its_log_and_in_the_runs_report(tm
 def test_a_member_list_that_never_arrives_is_asked_for_again(monkeypatch):
     """A batched swarm's member list is latched; now and then the world's subscription, made once
     the topic is on the graph, never delivered it (the world waited 60 s, the recorder of the same
-    run had it). Here the world's first subscription drops what it hears: the world subscribes
-    again after MEMBERS_RETRY_S, hears the list from the new reader, and starts."""
-    import kilobot_twin.nodes.world as W
-
-    monkeypatch.setattr(W, "MEMBERS_RETRY_S", 1.0)
+    run had it). Here the world's first reader of the list is never served: the world subscribes
+    again after RETRY_S, hears the list from the new reader, and starts."""
+    monkeypatch.setattr(latched, "RETRY_S", 1.0)
+    drop_first_reader(monkeypatch, "/members")
     with Graph() as g:
         world = g.add(WorldNode(context=g.context, parameter_overrides=overrides(
             scenario="random_walk", duration_s=1.0, robots=N, settle_s=0.2, linger_s=0.0, gate_report_s=0.0)))
-        heard, made = [], []
-        real_on, real_sub = world._on_members, world._subscribe_members
-
-        def on_members(base, msg):
-            heard.append(len(made))
-            if len(made) > 1:  # the first reader's deliveries are lost
-                real_on(base, msg)
-
-        def subscribe(base, topic):
-            made.append(topic)
-            real_sub(base, topic)
-
-        monkeypatch.setattr(world, "_on_members", on_members)
-        monkeypatch.setattr(world, "_subscribe_members", subscribe)
         swarm = g.add(SwarmNode(context=g.context, parameter_overrides=overrides(robots=N, batched=True)))
         assert g.spin_until(lambda: swarm.world_ready.done(), 10)
         swarm.create_robots(g.executor)
         assert g.spin_until(lambda: world.finished.done(), 30), world._gate_waits_for()
-    assert made == ["/swarm/members", "/swarm/members"] and heard and heard[-1] == 2
+        reader = world._members_readers["/swarm"]
+        assert reader.topic == "/swarm/members" and reader.retries == 1 and world.swarms["/swarm"] == set(range(N))
+
+
+def test_a_swarm_whose_reader_of_the_worlds_scenario_is_never_served_asks_again_and_runs(monkeypatch):
+    """CI of stop 57: a swarm never heard the world's latched scenario document, so it never made
+    its robots and the run timed out after 60 s. Its first reader of the document is never served
+    here: it subscribes again, makes its robots, and the run ends."""
+    monkeypatch.setattr(latched, "RETRY_S", 1.0)
+    drop_first_reader(monkeypatch, "/world/scenario")
+    with Graph() as g:
+        world = g.add(WorldNode(context=g.context, parameter_overrides=overrides(
+            scenario="random_walk", duration_s=1.0, robots=N, settle_s=0.2, linger_s=0.0, gate_report_s=0.0)))
+        swarm = g.add(SwarmNode(context=g.context, parameter_overrides=overrides(robots=N, batched=True)))
+        assert g.spin_until(lambda: swarm.world_ready.done(), 10)
+        assert swarm.world_reader.retries == 1
+        swarm.create_robots(g.executor)
+        assert g.spin_until(lambda: world.finished.done(), 30), world._gate_waits_for()
