@@ -65,3 +65,21 @@ def test_a_served_reader_is_not_made_again():
         g.spin_until(lambda: False, 1.0)
         assert got == ["x"] and reader.retries == 0
 
+
+
+def test_no_node_reads_a_latched_topic_but_through_a_latched_reader():
+    """Every subscription with qos.LATCHED in the package is a LatchedReader's own: a plain one
+    would hang a run the day Fast DDS does not serve it (the CI failure of stop 57)."""
+    import ast
+    from pathlib import Path
+
+    import kilobot_twin
+
+    root = Path(kilobot_twin.__file__).parent
+    plain = []
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and getattr(node.func, "attr", "") == "create_subscription":
+                if any(isinstance(a, ast.Attribute) and a.attr == "LATCHED" for a in list(node.args) + [k.value for k in node.keywords]):
+                    plain.append(f"{path.relative_to(root)}:{node.lineno}")
+    assert [p.split(":")[0] for p in plain] == ["ros/latched.py"], plain
