@@ -26,23 +26,23 @@ RETRY_S = 3.0
 class LatchedReader:
     """``node.create_subscription(msg_type, topic, callback, qos.LATCHED)`` that is made again
     while nothing has been heard although ``topic`` has a publisher. ``retries`` counts the
-    subscriptions made again; ``heard`` says whether a message arrived."""
+    subscriptions made again (a subscription's deliveries carry the count it was made at);
+    ``heard`` says whether a message arrived."""
 
     def __init__(self, node, msg_type, topic: str, callback, retry_s: float | None = None):
         self.node, self.msg_type, self.topic, self.callback = node, msg_type, topic, callback
         self.retry_s = RETRY_S if retry_s is None else float(retry_s)
         self.heard = False
         self.retries = 0
-        self._generation = 0
         self._sub = self._subscribe()
         self._timer = node.create_timer(min(1.0, self.retry_s / 3.0), self._check)
 
     def _subscribe(self):
         self._since = time.monotonic()
-        gen = self._generation
-        return self.node.create_subscription(self.msg_type, self.topic, lambda msg: self._deliver(gen, msg), qos.LATCHED)
+        made_at = self.retries
+        return self.node.create_subscription(self.msg_type, self.topic, lambda msg: self._deliver(made_at, msg), qos.LATCHED)
 
-    def _deliver(self, generation: int, msg) -> None:
+    def _deliver(self, made_at: int, msg) -> None:
         if not self.heard:
             self.heard = True
             self._stop_timer()
@@ -58,7 +58,6 @@ class LatchedReader:
         self.node.get_logger().warning(f"nothing heard on latched {self.topic} after {now - self._since:.0f} s "
                                        "although it has a publisher: subscribing again")
         self.node.destroy_subscription(self._sub)
-        self._generation += 1
         self.retries += 1
         self._sub = self._subscribe()
 
@@ -66,10 +65,3 @@ class LatchedReader:
         if self._timer is not None:
             self.node.destroy_timer(self._timer)
             self._timer = None
-
-    def destroy(self) -> None:
-        """Drop the subscription (and its timer)."""
-        self._stop_timer()
-        if self._sub is not None:
-            self.node.destroy_subscription(self._sub)
-            self._sub = None

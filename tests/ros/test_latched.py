@@ -2,7 +2,7 @@
 
 Fast DDS's loss of a transient-local history to a late joiner cannot be provoked on demand, so
 these tests lose it themselves: the first reader's deliveries are dropped (``_deliver`` of
-generation 0 ignored), as a reader that DDS never serves.
+the first subscription ignored), as a reader that DDS never serves.
 """
 
 from rclpy.node import Node
@@ -18,10 +18,10 @@ def drop_first_reader(monkeypatch, topic_suffix=""):
     """Deliveries to the first reader of every topic ending in ``topic_suffix`` are lost."""
     real = LatchedReader._deliver
 
-    def deliver(self, generation, msg):
-        if generation == 0 and self.topic.endswith(topic_suffix):
+    def deliver(self, made_at, msg):
+        if made_at == 0 and self.topic.endswith(topic_suffix):
             return
-        real(self, generation, msg)
+        real(self, made_at, msg)
 
     monkeypatch.setattr(LatchedReader, "_deliver", deliver)
 
