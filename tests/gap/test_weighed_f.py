@@ -63,6 +63,14 @@ def test_model_variances_read_each_robots_variance_off_the_null():
     alike = model_variances("motion", {"turn_rate": rng.standard_normal((M, K, N))})
     # robots alike are pulled to one variance by as much as they differ only by replicate noise
     assert np.ptp(np.log(alike["turn_rate"])) < np.sqrt(2 / (M * (K - 1)))
+    # robots missing from trials: a robot seen in 2 of 3 trials lies on its line exactly and
+    # has no variance of its own about it (it takes the typical robot's), and the others' are read
+    # on their own counts of trials (studentised), so robots alike still weigh alike
+    x = rng.standard_normal((M, 3, N))
+    x[:, 0, 2] = x[:, 1, 4] = x[:, 2, 5] = x[:, 0, 5] = np.nan  # robot 5 seen in one trial only
+    gaps = model_variances("motion", {"turn_rate": x})
+    for key in ("turn_rate", "turn_rate:line"):
+        assert np.all(np.isfinite(gaps[key])) and np.ptp(np.log(gaps[key])) < 4 * np.sqrt(2 / M)
     # kinds without such summaries weigh nothing
     assert model_variances("blink", {"toggle_rate": rng.standard_normal((M, K, N))}) == {}
 
