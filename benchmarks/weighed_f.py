@@ -11,9 +11,8 @@ robots' variances.
 
 Every dataset and its null are drawn here from a normal model with the given per-robot
 variances and no effect; the rate at which detect's rule (p < alpha / 6, the motion family)
-flags each statistic is printed, pooled and weighted, with the rate theory gives (the exact F's
-tail at the same z rule is not the point: alpha / 6 is the nominal rate), and the power of both
-for a drift carried by the quiet robots beside one noisy robot.
+flags each statistic is printed, pooled and weighted, against the nominal alpha / 6, and the
+power of both for a drift carried by the quiet robots beside one noisy robot.
 
     python benchmarks/weighed_f.py [--datasets 3000] [--robots 10] [--trials 8]
 """

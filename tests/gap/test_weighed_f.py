@@ -75,7 +75,7 @@ def test_model_variances_read_each_robots_variance_off_the_null():
     assert model_variances("blink", {"toggle_rate": rng.standard_normal((M, K, N))}) == {}
 
 
-def _motion(rng, turn, M=None):
+def _motion(rng, turn):
     shape = turn.shape
     return {"turn_rate": turn, "speed": 0.01 + 1e-4 * rng.standard_normal(shape),
             "diffusion": 1.0 + 0.1 * rng.standard_normal(shape), "heading": rng.uniform(-np.pi, np.pi, shape)}
