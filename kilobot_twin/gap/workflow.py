@@ -184,7 +184,8 @@ def _ms_trend(x, v=None):
 
 def _line_residuals(x, studentised: bool = False):
     """Each robot's trials about its own line over trials, and about its own mean; x (..., K, N)
-    with gaps -> (about the line, about the mean), NaN where x is. ``studentised``: each divided
+    with gaps -> (about the line, about the mean, S_kk: each robot's sum of squared trial offsets
+    about its mean trial, keepdims), NaN where x is. ``studentised``: each divided
     by sqrt(1 - its leverage) (1/n, and 1/n + dk^2 / S_kk about the line), so that each has the
     trials' own variance whatever the robot's count of trials; NaN where a robot has no residual
     (one trial, or two about a line)."""
@@ -203,7 +204,7 @@ def _line_residuals(x, studentised: bool = False):
             keep_mean, keep_line = 1.0 - 1.0 / n, 1.0 - 1.0 / n - dk**2 / sxx
             about_mean = np.where(keep_mean > 1e-9, about_mean / np.sqrt(keep_mean), np.nan)
             about_line = np.where(keep_line > 1e-9, about_line / np.sqrt(keep_line), np.nan)
-        return about_line, about_mean
+        return about_line, about_mean, sxx
 
 
 def _trend_squares(x, v=None):
@@ -213,7 +214,7 @@ def _trend_squares(x, v=None):
     robots alike."""
     w = _robot_weights(v)
     K, N = x.shape[-2:]
-    about_line, about_mean = _line_residuals(x)
+    about_line, about_mean, _ = _line_residuals(x)
     with np.errstate(all="ignore"):
         ss0 = np.nansum(w * about_mean**2, axis=(-2, -1))
         ss1 = np.nansum(w * about_line**2, axis=(-2, -1))
@@ -280,7 +281,7 @@ def model_variances(kind: str, null: dict) -> dict:
         if x is None or np.ndim(x) != 3:
             continue
         M, K, N = x.shape
-        about_line, about_mean = _line_residuals(np.asarray(x, dtype=float), studentised=True)
+        about_line, about_mean, _ = _line_residuals(np.asarray(x, dtype=float), studentised=True)
         out[comp] = _replicate_spread(about_mean.reshape(M * K, N))[0]
         if K >= 3:
             out[comp + ":line"] = _replicate_spread(about_line.reshape(M * K, N))[0]
@@ -1300,15 +1301,10 @@ def about_lines(x):
     lines (pooled), its degrees of freedom (a robot's observed trials less 2, summed) and the
     mean over robots of S_kk, the sum of squared trial offsets about the robot's mean trial (a
     robot's slope has the variance residual / S_kk)."""
+    about_line, _, sxx = _line_residuals(x)
     with np.errstate(all="ignore"):
-        seen = np.isfinite(x)
-        k = np.arange(x.shape[0], dtype=float)[:, None]
-        kb = (np.where(seen, k, 0).sum(0)) / np.maximum(seen.sum(0), 1)
-        dk = np.where(seen, k - kb, 0.0)
-        dev = np.where(seen, x - np.nanmean(x, axis=0), 0.0)
-        slope = (dk * dev).sum(0) / np.maximum((dk**2).sum(0), 1e-12)
-        dof = int((seen.sum(0) - 2).clip(0).sum())
-        return float(((dev - slope * dk) ** 2).sum() / max(dof, 1)), dof, float(np.mean((dk**2).sum(0)))
+        dof = int((np.isfinite(x).sum(0) - 2).clip(0).sum())
+        return float(np.nansum(about_line**2) / max(dof, 1)), dof, float(np.mean(sxx))
 
 
 def _first_crossing(x, y, level):
