@@ -93,6 +93,32 @@ def _bias(turn_rate, model: TwinModel):
     return heading_bias_from_turn_rate(turn_rate, model.forward_speed_m_s * model.swarm.speed_factor[None, :])
 
 
+def line_residuals(x, k=None, studentised: bool = False):
+    """Each robot's trials about its own line over trials, and about its own mean; x (..., K, N)
+    with gaps -> (about the line, about the mean, S_kk: each robot's sum of squared trial offsets
+    about its mean trial, keepdims), NaN where x is. ``k`` (K,): the trials' positions (a fold's
+    trial numbers; 0..K-1 when not given). ``studentised``: each divided by sqrt(1 - its
+    leverage) (1/n, and 1/n + dk^2 / S_kk about the line), so that each has the trials' own
+    variance whatever the robot's count of trials; NaN where a robot has no residual (one trial,
+    or two about a line)."""
+    K = x.shape[-2]
+    k = (np.arange(K, dtype=float) if k is None else np.asarray(k, dtype=float).reshape(-1))[:, None]
+    with np.errstate(all="ignore"):
+        ok = np.isfinite(x)
+        about_mean = x - np.nanmean(x, axis=-2, keepdims=True)
+        n = ok.sum(-2, keepdims=True)
+        kb = (np.where(ok, k, 0).sum(-2, keepdims=True)) / n
+        dk = np.where(ok, k - kb, 0.0)
+        sxx = (dk**2).sum(-2, keepdims=True)
+        slope = (dk * np.where(ok, about_mean, 0)).sum(-2, keepdims=True) / sxx
+        about_line = about_mean - slope * dk
+        if studentised:
+            keep_mean, keep_line = 1.0 - 1.0 / n, 1.0 - 1.0 / n - dk**2 / sxx
+            about_mean = np.where(keep_mean > 1e-9, about_mean / np.sqrt(keep_mean), np.nan)
+            about_line = np.where(keep_line > 1e-9, about_line / np.sqrt(keep_line), np.nan)
+        return about_line, about_mean, sxx
+
+
 def within_var(b):
     """Pooled within-robot variance over trials (ddof per robot), b: (..., K, N) -> float, or
     an array over the leading axes."""
@@ -196,7 +222,7 @@ def shrink(est, se2, keep_spread: bool = False):
 _LN_RANGE, _LN_STEP = (-9.0, 5.0), 0.15
 
 
-def pool_intensities(m, n, a: float, b: float, iterations: int = 25):
+def pool_intensities(m, n, a: float, b: float, iterations: int = 25, second: tuple | None = None):
     """Per-robot noise intensities u_i >= 0 from each robot's mean ``m`` (..., N) of ``n`` (..., N)
     trial summaries that vary by a + b u_i^2 about u_i (``a``: what the rest, such as tracking,
     adds; ``b``: the part that scales with the intensity), pulled towards the population on a log
@@ -217,7 +243,22 @@ def pool_intensities(m, n, a: float, b: float, iterations: int = 25):
     intensities a factor 3.6 apart per sd (ln sd 1.3; independent world, 33 robots x 7 trials) it
     pulled robots 30x quieter than the mean up to a seventh of the mean, so the robots' simulated
     spread was far narrower on the log scale than measured, the between-robot flag stayed and the
-    noise, though scoring +902, was never named; the stated power fell as the spread grew."""
+    noise, though scoring +902, was never named; the stated power fell as the spread grew.
+
+    ``second = (v, dof, c, k)``: a second reading of each robot's intensity, its sample variance
+    ``v`` (..., N) of ``dof`` (..., N) degrees of freedom of a summary whose variance is c + k u_i
+    (the trial turn rates: a robot's heading noise scatters them from trial to trial, tracking and
+    the trial-to-trial bias spread add c). A sample variance of a normal summary is its variance
+    times chi2(dof) / dof, so the reading adds -dof/2 (ln s + v / s) to each robot's
+    log-likelihood on the grid (robots with dof 0 add nothing). Its variance is written s = g (f +
+    (1 - f) u / u_ref) (u_ref: the robots' mean first reading): c and k give the start, and the
+    share f that does not scale with the intensity and the scale g are fitted with mu and tau
+    (EM: g closed for each f of a grid, the best f). The second reading then says how the robots
+    differ, not where their level lies, and a model whose c or k is off shifts no robot: the
+    twin's white heading noise against a world's coloured noise (synth, tau 0.8 s) reads the
+    diffusion at 0.6x the turn rates, and the base, fitting both, puts the rest into a
+    trial-to-trial bias spread, a c that was 11 % of the turn rates' variance at the robots'
+    mean where the robots' own quietest showed 2 %; with c fixed, they were pulled 3x apart."""
     from scipy.special import digamma, polygamma
 
     m = np.asarray(m, dtype=float)
@@ -264,16 +305,53 @@ def pool_intensities(m, n, a: float, b: float, iterations: int = 25):
         var_h = (1 - share) / nn + share * spread
         ll = -0.5 * np.log(var_h) - 0.5 * (h(np.where(ok, m, 0.0))[..., None] - mean_h) ** 2 / var_h
     ll = np.where(ok[..., None], ll, 0.0)  # no data: the prior alone
-    like = np.exp(ll - ll.max(-1, keepdims=True))  # (..., N, G)
     step = lu[1] - lu[0]
     mu, tau = np.zeros(m.shape[:-1] + (1,)), np.ones(m.shape[:-1] + (1,))
     powers = np.stack([np.ones_like(lu), lu, lu**2], -1)  # (G, 3): the moments of ln u
+    if second is None:
+        like = np.exp(ll - ll.max(-1, keepdims=True))  # (..., N, G)
+    else:
+        v2, d2, c2, k2 = (np.asarray(q, dtype=float) for q in second)
+        ok2 = np.isfinite(v2) & (np.broadcast_to(d2, m.shape) > 0)
+        d2, v2 = np.where(ok2, d2, 0.0), np.where(ok2, v2, 0.0)
+        # The second summary's variance s = g (f + (1 - f) u / ref): its share f at the robots'
+        # mean intensity that does not scale with u, and its scale g; both start where c and k
+        # put them and are fitted with mu and tau.
+        rel_u = np.exp(lu)  # (G,): u / ref
+        fs = np.linspace(0.0, 0.95, 96)[:, None]  # (F, 1): the shares tried, 0.01 apart
+        shape = fs + (1 - fs) * rel_u  # (F, G)
+        inv_t, log_t = (1.0 / shape).T, np.log(shape).T  # (G, F)
+        f = np.full(m.shape[:-1] + (1,), float(np.clip(c2 / max(c2 + k2 * float(np.mean(ref)), 1e-300), 0.0, 0.95)))
+        g = np.full(m.shape[:-1] + (1,), float(c2 + k2 * float(np.mean(ref))))
+
+        def like_at(f, g):  # the first reading's likelihood and the second's at (f, g)
+            s = np.maximum(g[..., None] * (f[..., None] + (1 - f[..., None]) * rel_u), 1e-300)
+            with np.errstate(all="ignore"):
+                lt = ll - 0.5 * d2[..., None] * (np.log(s) + v2[..., None] / s)
+            return np.exp(lt - lt.max(-1, keepdims=True))
     for _ in range(iterations):
+        if second is not None:
+            like = like_at(f, g)
         prior = np.exp(-0.5 * ((lu - mu) / tau) ** 2)  # (..., G)
         e = like @ (prior[..., :, None] * powers)  # (..., N, 3): the posterior's unnormalised moments
         e1, e2 = e[..., 1] / e[..., 0], e[..., 2] / e[..., 0]
         mu = e1.mean(-1, keepdims=True)
         tau = np.sqrt(np.maximum(e2.mean(-1, keepdims=True) - mu**2, (step / 2) ** 2))
+        if second is not None and d2.sum() > 0:
+            # M step for (f, g) under the posterior: for each share f the scale is closed,
+            # g(f) = sum_i dof_i E[v_i / shape_i] / sum_i dof_i, and the expected log-likelihood is
+            # then -1/2 sum_i dof_i (ln g(f) + E[ln shape_i]) + const; the best f of the grid.
+            post = like * prior[..., None, :]
+            post = post / post.sum(-1, keepdims=True)  # (..., N, G)
+            inv, eln = post @ inv_t, post @ log_t  # (..., N, F): E[1 / shape], E[ln shape] per robot and share
+            dsum = np.maximum(d2.sum(-1, keepdims=True), 1e-300)  # (..., 1)
+            g_f = ((d2 * v2)[..., None] * inv).sum(-2) / dsum  # (..., F)
+            obj = -0.5 * (dsum * np.log(np.maximum(g_f, 1e-300)) + (d2[..., None] * eln).sum(-2))
+            j = np.argmax(obj, axis=-1)[..., None]
+            f = np.take_along_axis(np.broadcast_to(fs[:, 0], obj.shape), j, -1)
+            g = np.take_along_axis(g_f, j, -1)
+    if second is not None:
+        like = like_at(f, g)
     post = like * np.exp(-0.5 * ((lu - mu) / tau) ** 2)[..., None, :]
     post /= post.sum(-1, keepdims=True)
     e1 = (post * lu).sum(-1)
@@ -923,7 +1001,8 @@ class MotionNoise(Effect):
         s2 = model.swarm.sigma_omega**2
         if resim is None or not np.any(s2 > 0):
             return model
-        quiet = resim(model.with_traits(sigma_omega=np.zeros(n)))["diffusion"]
+        quiet_sim = resim(model.with_traits(sigma_omega=np.zeros(n)))
+        quiet = quiet_sim["diffusion"]
         c = np.nanmean(quiet)
         level = np.nanmean(ref["diffusion"]) - c  # the heading noise's part at the population's intensity
         if not level > 0:
@@ -934,13 +1013,58 @@ class MotionNoise(Effect):
         a = float(np.nanmean(within_var(quiet)))
         b = max(float(np.nanmean(within_var(ref["diffusion"]))) - a, 0.0) / level**2
         x = meas["diffusion"] - c
-        u, w, u_keep, reliability = pool_intensities(_nanmean(x, axis=0), np.isfinite(x).sum(0), a, b)
+        # (60 EM steps: the second reading's share and scale converge more slowly than mu and tau)
+        u, w, u_keep, reliability = pool_intensities(_nanmean(x, axis=0), np.isfinite(x).sum(0), a, b, iterations=60,
+                                                     second=self._turn_reading(model, meas, ref, quiet_sim, level))
         m = model.with_traits(sigma_omega=np.sqrt(u / slope)).pooled("diffusion", w)
         # (the expected r from the log scale's reliability: a weight near 1, an estimate barely
         # pooled, says nothing of how far the robots' spread exceeds its error)
         m = m.with_individual({"sigma_omega": reliability}, sigma_omega=np.sqrt(u_keep / slope))
         # The trial-to-trial bias spread keeps only what the new noise does not already explain.
         return m.with_traits(bias_trial_sd=_trial_spread(within_var(_bias(meas["turn_rate"], m)), ref, m, resim, noise))
+
+
+    @staticmethod
+    def _turn_reading(model, meas, ref, quiet, level):
+        """The trial turn rates' reading of each robot's noise (``pool_intensities``'s ``second``):
+        each robot's sample variance of its turn rates about its mean (about its line where the
+        model has drifts), which is c + k u for a robot whose diffusion holds u of heading noise;
+        c from the simulation without heading noise (tracking, the trial-to-trial bias spread),
+        c + k level from the model's own (the median over replicates, as :func:`_replicate_centre`
+        takes it). None where the simulated turn rates do not grow with the noise.
+
+        The diffusion alone reads a robot's noise through tracking noise that can swamp it: 12
+        robots x 4 trials whose intensities differ by e^0.8 per sd, 1.3 mm of white and 1.4 mm
+        of correlated tracking noise (synth 3087), each robot's mean diffusion scattered by
+        2e-5 rad^2/s about sigma_omega^2 of 6e-7 to 9e-5, and a robot 24x quieter than the
+        noisiest read highest of all; in the same world over 40 trials the turn rates' variances
+        follow the robots' sigma_omega^2 with a correlation of 0.97 on a log scale.
+
+        The turn rates are read relative to one another: the EM fits their scale (see
+        :func:`pool_intensities`), so a world whose turn rates vary more or less than the model's
+        do at the same diffusion (heading noise coloured unlike the twin's) shifts no robot."""
+        lines = bool(np.any(model.swarm.bias_drift != 0))
+        k = _trial_index(meas)[:, 0]
+
+        def per_robot(tr):
+            about_line, about_mean, _ = line_residuals(np.asarray(tr, dtype=float), k)
+            with np.errstate(all="ignore"):
+                dof = (np.isfinite(tr).sum(-2) - (2 if lines else 1)).clip(0)
+                ss = np.nansum((about_line if lines else about_mean) ** 2, axis=-2)
+            return ss, dof
+
+        def centre(tr):  # the pooled variance per replicate, its median over replicates
+            ss, dof = per_robot(tr)
+            with np.errstate(all="ignore"):
+                return float(np.nanmedian(ss.sum(-1) / np.where(dof.sum(-1) > 0, dof.sum(-1), np.nan)))
+
+        c0, c1 = centre(quiet["turn_rate"]), centre(ref["turn_rate"])
+        if not (np.isfinite(c0) and np.isfinite(c1) and c1 > c0 and level > 0):
+            return None
+        ss, dof = per_robot(meas["turn_rate"])
+        with np.errstate(all="ignore"):
+            v = np.where(dof > 0, ss / np.maximum(dof, 1), np.nan)
+        return v, dof, c0, (c1 - c0) / level
 
 
 class SensorGain(Effect):

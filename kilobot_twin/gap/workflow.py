@@ -182,31 +182,6 @@ def _ms_trend(x, v=None):
         return np.log(np.maximum(_trend_squares(x, v)[0], 1e-300))
 
 
-def _line_residuals(x, studentised: bool = False):
-    """Each robot's trials about its own line over trials, and about its own mean; x (..., K, N)
-    with gaps -> (about the line, about the mean, S_kk: each robot's sum of squared trial offsets
-    about its mean trial, keepdims), NaN where x is. ``studentised``: each divided
-    by sqrt(1 - its leverage) (1/n, and 1/n + dk^2 / S_kk about the line), so that each has the
-    trials' own variance whatever the robot's count of trials; NaN where a robot has no residual
-    (one trial, or two about a line)."""
-    K = x.shape[-2]
-    k = np.arange(K, dtype=float)[:, None]
-    with np.errstate(all="ignore"):
-        ok = np.isfinite(x)
-        about_mean = x - np.nanmean(x, axis=-2, keepdims=True)
-        n = ok.sum(-2, keepdims=True)
-        kb = (np.where(ok, k, 0).sum(-2, keepdims=True)) / n
-        dk = np.where(ok, k - kb, 0.0)
-        sxx = (dk**2).sum(-2, keepdims=True)
-        slope = (dk * np.where(ok, about_mean, 0)).sum(-2, keepdims=True) / sxx
-        about_line = about_mean - slope * dk
-        if studentised:
-            keep_mean, keep_line = 1.0 - 1.0 / n, 1.0 - 1.0 / n - dk**2 / sxx
-            about_mean = np.where(keep_mean > 1e-9, about_mean / np.sqrt(keep_mean), np.nan)
-            about_line = np.where(keep_line > 1e-9, about_line / np.sqrt(keep_line), np.nan)
-        return about_line, about_mean, sxx
-
-
 def _trend_squares(x, v=None):
     """Per-robot lines over trials: the trends' mean square and the residual mean square about
     the lines; x (..., K, N) -> ((...), (...)). ``v`` (N,): each robot's variance about its line
@@ -214,7 +189,7 @@ def _trend_squares(x, v=None):
     robots alike."""
     w = _robot_weights(v)
     K, N = x.shape[-2:]
-    about_line, about_mean, _ = _line_residuals(x)
+    about_line, about_mean, _ = E.line_residuals(x)
     with np.errstate(all="ignore"):
         ss0 = np.nansum(w * about_mean**2, axis=(-2, -1))
         ss1 = np.nansum(w * about_line**2, axis=(-2, -1))
@@ -259,7 +234,7 @@ def model_variances(kind: str, null: dict) -> dict:
     the summaries of :data:`_WEIGHED`: ``comp`` about each robot's mean and ``comp:line`` about its
     line over trials, each pulled towards the typical robot's by as much as the robots' variances
     differ beyond replicate noise (:func:`_replicate_spread`), so robots alike weigh alike. The
-    residuals are studentised (:func:`_line_residuals`): a robot seen in 2 of 3 trials lies on its
+    residuals are studentised (:func:`effects.line_residuals`): a robot seen in 2 of 3 trials lies on its
     line exactly, and its variance read as 0 had made it weigh 10^33 times the others (third world
     3093, 36 robots x 3 trials with four robots missing one each: its drift's trend F, at z 4.6
     pooled, stood at -0.6); it takes the typical robot's.
@@ -281,7 +256,7 @@ def model_variances(kind: str, null: dict) -> dict:
         if x is None or np.ndim(x) != 3:
             continue
         M, K, N = x.shape
-        about_line, about_mean, _ = _line_residuals(np.asarray(x, dtype=float), studentised=True)
+        about_line, about_mean, _ = E.line_residuals(np.asarray(x, dtype=float), studentised=True)
         out[comp] = _replicate_spread(about_mean.reshape(M * K, N))[0]
         if K >= 3:
             out[comp + ":line"] = _replicate_spread(about_line.reshape(M * K, N))[0]
@@ -1301,7 +1276,7 @@ def about_lines(x):
     lines (pooled), its degrees of freedom (a robot's observed trials less 2, summed) and the
     mean over robots of S_kk, the sum of squared trial offsets about the robot's mean trial (a
     robot's slope has the variance residual / S_kk)."""
-    about_line, _, sxx = _line_residuals(x)
+    about_line, _, sxx = E.line_residuals(x)
     with np.errstate(all="ignore"):
         dof = int((np.isfinite(x).sum(0) - 2).clip(0).sum())
         return float(np.nansum(about_line**2) / max(dof, 1)), dof, float(np.mean(sxx))
