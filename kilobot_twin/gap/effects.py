@@ -254,11 +254,11 @@ def pool_intensities(m, n, a: float, b: float, iterations: int = 25, second: tup
     (1 - f) u / u_ref) (u_ref: the robots' mean first reading): c and k give the start, and the
     share f that does not scale with the intensity and the scale g are fitted with mu and tau
     (EM: g closed for each f of a grid, the best f). The second reading then says how the robots
-    differ, not where their level lies, and a model whose c or k is off shifts no robot: the
-    twin's white heading noise against a world's coloured noise (synth, tau 0.8 s) reads the
-    diffusion at 0.6x the turn rates, and the base, fitting both, puts the rest into a
-    trial-to-trial bias spread, a c that was 11 % of the turn rates' variance at the robots'
-    mean where the robots' own quietest showed 2 %; with c fixed, they were pulled 3x apart."""
+    differ, not where their level lies, and a model whose c or k is off shifts no robot. In synth
+    3080 (turn-rate noise correlated over 0.6 s, no trial-to-trial bias spread) the base, fitting
+    the diffusion and the turn rates with the twin's white noise, put the difference into a
+    trial-to-trial bias spread of 0.0035, which made c 11 % of the turn rates' variance at the
+    robots' mean, where the two quietest robots showed 2-3 % of it in all."""
     from scipy.special import digamma, polygamma
 
     m = np.asarray(m, dtype=float)
