@@ -13,6 +13,7 @@ summaries alike and cancels in the ratio or difference.
 from __future__ import annotations
 
 import abc
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -392,8 +393,10 @@ def _trial_spread(var: float, ref, model, resim=None, noise=None):
 def _pooled_replicate_var(x):
     """Variance over replicates (axis 0) of each (trial, robot), pooled over tracks, leaving out
     tracks whose variance is over 10x the median: a replicate whose heading unwrapping failed on
-    a short, gappy track would otherwise swamp the pooled value (seen on noisy tracking)."""
-    with np.errstate(all="ignore"):
+    a short, gappy track would otherwise swamp the pooled value (seen on noisy tracking). Tracks
+    seen in fewer than two replicates have no variance (NaN, without a warning)."""
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
         v = np.nanvar(x, axis=0, ddof=1)
     v = v[np.isfinite(v)]
     if not v.size:
