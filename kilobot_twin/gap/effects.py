@@ -309,11 +309,14 @@ def pool_intensities(m, n, a: float, b: float, iterations: int = 25, second: tup
     step = lu[1] - lu[0]
     mu, tau = np.zeros(m.shape[:-1] + (1,)), np.ones(m.shape[:-1] + (1,))
     powers = np.stack([np.ones_like(lu), lu, lu**2], -1)  # (G, 3): the moments of ln u
+    if second is not None:
+        v2, d2, c2, k2 = (np.asarray(q, dtype=float) for q in second)
+        ok2 = np.isfinite(v2) & (np.broadcast_to(d2, m.shape) > 0)
+        if not ok2.any():  # no robot has a second reading
+            second = None
     if second is None:
         like = np.exp(ll - ll.max(-1, keepdims=True))  # (..., N, G)
     else:
-        v2, d2, c2, k2 = (np.asarray(q, dtype=float) for q in second)
-        ok2 = np.isfinite(v2) & (np.broadcast_to(d2, m.shape) > 0)
         d2, v2 = np.where(ok2, d2, 0.0), np.where(ok2, v2, 0.0)
         # The second summary's variance s = g (f + (1 - f) u / ref): its share f at the robots'
         # mean intensity that does not scale with u, and its scale g; both start where c and k
@@ -338,7 +341,7 @@ def pool_intensities(m, n, a: float, b: float, iterations: int = 25, second: tup
         e1, e2 = e[..., 1] / e[..., 0], e[..., 2] / e[..., 0]
         mu = e1.mean(-1, keepdims=True)
         tau = np.sqrt(np.maximum(e2.mean(-1, keepdims=True) - mu**2, (step / 2) ** 2))
-        if second is not None and d2.sum() > 0:
+        if second is not None:
             # M step for (f, g) under the posterior: for each share f the scale is closed,
             # g(f) = sum_i dof_i E[v_i / shape_i] / sum_i dof_i, and the expected log-likelihood is
             # then -1/2 sum_i dof_i (ln g(f) + E[ln shape_i]) + const; the best f of the grid.
@@ -1025,7 +1028,6 @@ class MotionNoise(Effect):
         m = m.with_individual({"sigma_omega": reliability}, sigma_omega=np.sqrt(u_keep / slope))
         # The trial-to-trial bias spread keeps only what the new noise does not already explain.
         return m.with_traits(bias_trial_sd=_trial_spread(within_var(_bias(meas["turn_rate"], m)), ref, m, resim, noise))
-
 
     @staticmethod
     def _turn_reading(model, meas, ref, quiet, level):
