@@ -319,7 +319,8 @@ def _mde(rows):
     mdes, nulls = defaultdict(list), defaultdict(list)
     for r in rows:
         for k, v in r["mde"].items():
-            mdes[(k, v["unit"])].append((_mde_size(r, k), v.get("detection_size", np.nan)))
+            det = v.get("detection_size", np.nan)  # None: not flagged with 80 % power within the search
+            mdes[(k, v["unit"])].append((_mde_size(r, k), np.inf if det is None else det))
             if not r["hidden"]:
                 nulls[k].append(_mde_size(r, k))
     for (k, unit), v in mdes.items():

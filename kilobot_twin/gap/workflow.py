@@ -1155,8 +1155,14 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
     1 + K tau^2 / s_w^2 (s_w^2: the within-robot variance of one trial's summary, from the data:
     a between-robot effect, if present, is not in it). Its logarithm is what :func:`detect`
     compares with the simulated null (sd s0), flagging above z(alpha / n) s0; so ``power`` is
-    reached at log(1 + K tau^2 / s_w^2) = (z(alpha / n) + z(1 - power)) s0. A drift (summaries
+    reached near log(1 + K tau^2 / s_w^2) = (z(alpha / n) + z(1 - power)) s0. A drift (summaries
     changing by sd tau per trial) raises the trend statistic's ratio by 1 + S_kk tau^2 / s_w^2.
+    That closed form carries the null's sd to the alternative, where the log F of robots that
+    differ by a fixed spread scatters less, and it overstates the size (by 9 % at 12 robots x 4
+    trials: the random-effects answer, for robots drawn from a population of that sd); it only
+    sets where the search starts. ``detection_size`` is read off the emulation below
+    (:func:`detection_power`: its flags alone), on the same emulated datasets as the size named,
+    so it is never above it.
 
     Naming also needs the held-out score (:func:`decide`), which is noisier than the F ratio: at
     the detection size it is often not clear. Its power is found by emulation in summary space
@@ -1166,10 +1172,9 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
     The within-robot variance is itself estimated from the dataset's trials: the emulation
     averages the power over what it may be (``naming_power``'s ``dof``), so a size is the one a
     fresh dataset of the same noise names with ``power``, not the one this dataset's estimate,
-    taken for exact, would. (The detection size takes the estimate for exact.) An effect that
-    predicts more summaries per robot than the one its size is read in (a sensor gain: offsets
-    too) pays for their estimates in the held-out score, and the emulation charges it
-    (``companions``).
+    taken for exact, would. An effect that predicts more summaries per robot than the one its
+    size is read in (a sensor gain: offsets too) pays for their estimates in the held-out score,
+    and the emulation charges it (``companions``).
 
     Robots that differ in noise (``motion_noise``) differ by a factor: the emulation draws their
     intensities lognormal around the ``base`` model's and lets the noisier robots' summaries
@@ -1259,12 +1264,22 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
                           gain_level=gain_level, dof=dof, rival_threshold=rival, companions=companions,
                           threads=threads, stop_at=power)
         tau = _first_crossing(taus, pw, power)
+        # The detection size on the same emulated datasets, from well below the closed form's
+        # (which overstates it, see detection_power); never above the size named (naming needs
+        # the flag: only the interpolation between spreads could put it above).
+        det_taus = tau_det * np.geomspace(0.2, 16.0, 28)
+        if noise is not None:
+            det_taus = det_taus[det_taus <= _MAX_LOG_SD] if (det_taus <= _MAX_LOG_SD).any() else det_taus[:1]
+        tau_flag = min(_first_crossing(det_taus, detection_power(seen, s_w2, det_taus, drift, z_det * s0 + shift, seed=seed,
+                                                                 noise=noise, dof=dof), power), tau)
         per_size = 1.0 if noise is not None else float((sensitivity or {}).get(comp, 1.0))
         scale /= per_size
-        # None: not named with that power even at 16x the detection size (too few robots), or,
-        # for noise intensities, at a spread of _MAX_LOG_SD.
+        # None: not named (or flagged) with that power within the spreads searched (too few
+        # robots), up to ``searched_to``: 16x the closed form's detection size or, for noise
+        # intensities, a spread of _MAX_LOG_SD.
         named = tau * scale if np.isfinite(tau) else None
-        out[effect] = {"size": named, "detection_size": tau_det * scale, "unit": unit, "summary_per_size": per_size}
+        out[effect] = {"size": named, "detection_size": tau_flag * scale if np.isfinite(tau_flag) else None,
+                       "searched_to": float(max(taus[-1], det_taus[-1])) * scale, "unit": unit, "summary_per_size": per_size}
         if effect == "heading_bias" and named is not None:  # also in the twin's units, b = -omega L / v
             v = float(np.nanmean(null["speed"]))
             out[effect]["heading_bias_sd"] = float(abs(heading_bias_from_turn_rate(named, v)))
@@ -1344,41 +1359,8 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
     :func:`_heldout`, see :func:`_replicate_spread`), widened by its level's error through the
     spread as there (:func:`effects.spread_leverage`, b = f s_w2 / level^2); the base's is the
     population's, ``s_w2``."""
-    rng = np.random.default_rng(seed)
-    K, N = seen.shape
-    eps = rng.normal(0.0, np.sqrt(s_w2), (reps, K, N))
-    eps[:, ~seen] = np.nan
-    effect = rng.standard_normal((reps, 1, N))
-    # Sizes are the spread among the dataset's robots (their sd, ddof 1), as the detection size
-    # of minimum_detectable takes it (the F ratio's expected growth) and as an evaluation sets
-    # it: each replicate's robots have that sd exactly. Drawn from a population of that sd, 12
-    # robots' sd scatters by a fifth, and the power averaged over that scatter is below the
-    # power at the sd itself (near 80 %): the sizes stated were 7-12 % larger.
-    with np.errstate(all="ignore"):
-        effect = effect / np.std(effect, axis=-1, ddof=1, keepdims=True)
-    if drift:
-        # Lines through each robot's own mean over its trials: the drift alone, without the
-        # spread of levels that lines through a common start (trial 0) would add. That spread is
-        # a heading bias, which helps a drift past the base but not past its rival (a robot's
-        # mean); a world whose drifts do not share a start (the independent world's cross at the
-        # middle trial) has none of it, and emulated with it the stated size was named in 44 %.
-        k = np.arange(K, dtype=float)[:, None]
-        k_mean = (np.where(seen, k, 0.0).sum(0)) / np.maximum(seen.sum(0), 1)
-        effect = effect * (k - k_mean)
-    if noise is not None:
-        level, f = noise
-        shape = level**2 / (f * s_w2) if f * s_w2 > 0 else np.inf
-        g = rng.gamma(shape, 1.0 / shape, eps.shape) if np.isfinite(shape) else np.ones(eps.shape)
-        tracking = eps * np.sqrt(1.0 - f)
-    idx = rng.integers(0, N, (boot, N))
-    if dof is not None and dof > 0 and noise is None:
-        # s_w2 was estimated from the dataset's trials (dof degrees of freedom): each replicate
-        # takes a within-robot variance that could have given that estimate, s_w2 dof / chi2(dof)
-        # (the standard posterior of a normal variance). Sizes stated at the known-variance power
-        # were named in about 77 % of fresh datasets at 16-36 degrees of freedom, not 80 %: the
-        # estimate scatters, and the power lost where it came out low is more than that gained
-        # where it came out high (benchmarks/bench_mde_dof.py).
-        eps = eps * np.sqrt(dof / rng.chisquare(dof, (reps, 1, 1)))
+    rng, emulated, stat, shift, null_mean, idx = _emulation(seen, s_w2, drift, reps, boot, seed, noise, dof)
+    N = seen.shape[1]
 
     extra = np.zeros((reps, N))  # what the companions' pooled estimates gain (or cost), the same at every tau
     for seen_c in companions:
@@ -1386,21 +1368,8 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
         e_c[:, ~np.asarray(seen_c, dtype=bool)] = np.nan
         extra += _heldout_gain(e_c, False, base_absorbs)[0]
 
-    def emulated(tau):
-        if noise is None:
-            return eps + tau * effect
-        sig = 2.0 * tau  # tau: sd of ln sigma_omega; the summary's noise share goes with sigma_omega^2
-        r = np.exp(sig * effect - 0.5 * sig**2)
-        return level * (r * g - 1.0) + tracking
-
-    # A noise summary is tested as statistics() does, on a log scale: of the summary itself, the
-    # population's level plus each robot's departure from it.
-    stat = _f_noise if noise is not None else _f_trend if drift else _f_between
-    shift = noise[0] if noise is not None else 0.0
-    x0 = emulated(0.0)
-    null_mean = float(np.nanmean(stat(shift + x0)))
     if drift and rival_threshold is not None:
-        between_null = float(np.nanmean(_f_between(x0)))
+        between_null = float(np.nanmean(_f_between(emulated(0.0))))
 
     def power_at(tau):
         x = emulated(tau)
@@ -1427,6 +1396,82 @@ def naming_power(seen, s_w2: float, taus, drift: bool, base_absorbs: bool, thres
             if stop_at is not None and np.any(out[i:i + step] >= stop_at):
                 break
     return out
+
+
+def detection_power(seen, s_w2: float, taus, drift: bool, threshold: float, reps: int = 200, boot: int = 200,
+                    seed: int = 0, noise: tuple | None = None, dof: float | None = None) -> np.ndarray:
+    """Probability that the detection step alone flags a between-robot effect of spread ``tau``
+    (each of ``taus``): the statistic above its null mean by ``threshold``, on the datasets that
+    :func:`naming_power` emulates with the same arguments. The same draws, so at every tau it is
+    at least the naming power (naming needs the flag), and the detection size read from it is
+    never above the size named with the same power; and the same robots, whose spread is their
+    sd exactly, as an evaluation sets it (a fixed effect: the F ratio's numerator is then a
+    non-central chi-square, which scatters less on the log scale than the null's, so the closed
+    form of :func:`minimum_detectable`, the null's sd carried to the alternative, overstates the
+    size: by 9 % at 12 robots x 4 trials against the non-central F's power, tests/gap/test_mde.py)."""
+    _, emulated, stat, shift, null_mean, _ = _emulation(seen, s_w2, drift, reps, boot, seed, noise, dof)
+    with np.errstate(all="ignore"):
+        return np.array([float(np.mean(stat(shift + emulated(t)) - null_mean > threshold)) for t in taus])
+
+
+def _emulation(seen, s_w2: float, drift: bool, reps: int, boot: int, seed: int, noise: tuple | None,
+               dof: float | None):
+    """The emulated datasets of :func:`naming_power` (its docstring says what they are, and the
+    order of the draws): ``(rng, emulated, stat, shift, null_mean, idx)``, the generator (its
+    next draws are the companions'), ``emulated(tau)`` the replicates' summaries (reps, K, N)
+    at spread tau, the detection statistic ``stat`` of ``shift`` + summaries, its mean over the
+    replicates without an effect, and the bootstrap's robot indices. :func:`detection_power`
+    reads the same draws."""
+    rng = np.random.default_rng(seed)
+    K, N = seen.shape
+    eps = rng.normal(0.0, np.sqrt(s_w2), (reps, K, N))
+    eps[:, ~seen] = np.nan
+    effect = rng.standard_normal((reps, 1, N))
+    # Sizes are the spread among the dataset's robots (their sd, ddof 1), as minimum_detectable
+    # states them and as an evaluation sets them: each replicate's robots have that sd exactly.
+    # Drawn from a population of that sd, 12 robots' sd scatters by a fifth, and the power
+    # averaged over that scatter is below the power at the sd itself (near 80 %): the sizes
+    # stated were 7-12 % larger.
+    with np.errstate(all="ignore"):
+        effect = effect / np.std(effect, axis=-1, ddof=1, keepdims=True)
+    if drift:
+        # Lines through each robot's own mean over its trials: the drift alone, without the
+        # spread of levels that lines through a common start (trial 0) would add. That spread is
+        # a heading bias, which helps a drift past the base but not past its rival (a robot's
+        # mean); a world whose drifts do not share a start (the independent world's cross at the
+        # middle trial) has none of it, and emulated with it the stated size was named in 44 %.
+        k = np.arange(K, dtype=float)[:, None]
+        k_mean = (np.where(seen, k, 0.0).sum(0)) / np.maximum(seen.sum(0), 1)
+        effect = effect * (k - k_mean)
+    if noise is not None:
+        level, f = noise
+        shape = level**2 / (f * s_w2) if f * s_w2 > 0 else np.inf
+        g = rng.gamma(shape, 1.0 / shape, eps.shape) if np.isfinite(shape) else np.ones(eps.shape)
+        tracking = eps * np.sqrt(1.0 - f)
+    idx = rng.integers(0, N, (boot, N))
+    if dof is not None and dof > 0 and noise is None:
+        # s_w2 was estimated from the dataset's trials (dof degrees of freedom): each replicate
+        # takes a within-robot variance that could have given that estimate, s_w2 dof / chi2(dof)
+        # (the standard posterior of a normal variance). Sizes stated at the known-variance power
+        # were named in about 77 % of fresh datasets at 16-36 degrees of freedom, not 80 %: the
+        # estimate scatters, and the power lost where it came out low is more than that gained
+        # where it came out high (benchmarks/bench_mde_dof.py).
+        eps = eps * np.sqrt(dof / rng.chisquare(dof, (reps, 1, 1)))
+
+    def emulated(tau):
+        if noise is None:
+            return eps + tau * effect
+        sig = 2.0 * tau  # tau: sd of ln sigma_omega; the summary's noise share goes with sigma_omega^2
+        r = np.exp(sig * effect - 0.5 * sig**2)
+        return level * (r * g - 1.0) + tracking
+
+    # A noise summary is tested as statistics() does, on a log scale: of the summary itself, the
+    # population's level plus each robot's departure from it.
+    stat = _f_noise if noise is not None else _f_trend if drift else _f_between
+    shift = noise[0] if noise is not None else 0.0
+    null_mean = float(np.nanmean(stat(shift + emulated(0.0))))
+    return rng, emulated, stat, shift, null_mean, idx
+
 
 
 def _heldout_gain(x, drift: bool, base_absorbs: bool, noise: tuple | None = None):

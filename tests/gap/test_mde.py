@@ -32,12 +32,55 @@ def test_clock_drift_at_the_stated_size_is_flagged_about_80_percent_of_the_time(
     D = 120
     hits = 0
     for d in range(D):
-        world = base.with_traits(clock_rate=1 + size * rng.standard_normal(n))
+        z = rng.standard_normal(n)  # the robots' spread is the size exactly (their sd), as sizes are defined
+        world = base.with_traits(clock_rate=1 + size * z / z.std(ddof=1))
         meas = {k: v[0] for k, v in simulate(cond, world, 1, seed=100 + d).items()}
         hits += detect("blink", meas, null, K, 0.01)[0]["flagged"]
     # 80 % target; binomial sd over 120 datasets is 3.7 %, and the stated size is itself
     # estimated (null spread from 200 replicates): +-12 % (about 3 binomial sd).
     assert abs(hits / D - 0.8) <= 0.12, hits / D
+
+
+def test_the_detection_size_is_where_the_non_central_f_test_has_80_percent_power():
+    """Between-robot summaries drawn in numpy, 12 robots x 4 trials. Expected, from theory: robots
+    whose levels have the sd tau exactly (as sizes are defined) make the one-way ANOVA's F a
+    non-central F(N - 1, N (K - 1)) of non-centrality K (N - 1) tau^2 / sigma^2 (scipy.stats.ncf);
+    the test flags ln F above the central F's mean ln F (scipy's f.expect) by z(0.01) times the
+    null's sd (ln F of the null replicates, by hand); the power is averaged over the variances
+    sigma^2 that could have given the data's pooled within-robot variance s^2 (sigma^2 = s^2 dof /
+    chi2(dof)), as the emulation averages it. The detection size stated (mean over 16 emulation
+    seeds) lies within 4 standard errors of the size where that power is 80 %. The closed form
+    log(1 + K tau^2 / s^2) = (z(0.01) + z(0.8)) s0, which carries the null's sd over to the
+    alternative, is the random-effects answer (robots drawn from a population of sd tau): it was
+    stated before, 0.0195 against the 0.0179 expected here."""
+    from scipy import integrate, optimize, stats
+
+    N, K, M, alpha = 12, 4, 2000, 0.01
+    d1, d2 = N - 1, N * (K - 1)
+    rng = np.random.default_rng(5)
+    null = {"toggle_rate": 1.0 + 0.02 * rng.standard_normal((M, K, N))}
+    meas = {"toggle_rate": 1.0 + 0.02 * rng.standard_normal((K, N))}
+    got = [minimum_detectable("blink", meas, null, K, alpha, seed=k)["clock_drift"] for k in range(16)]
+    det = np.array([g["detection_size"] for g in got])
+    assert all(g["detection_size"] <= g["size"] for g in got)  # naming needs the flag
+
+    def ln_f(x):  # one-way ANOVA by hand
+        m_i = x.mean(-2, keepdims=True)
+        msb = K * ((m_i - x.mean((-2, -1), keepdims=True)) ** 2).sum((-2, -1)) / d1
+        msw = ((x - m_i) ** 2).sum((-2, -1)) / d2
+        return np.log(msb / msw)
+
+    s0 = np.std(ln_f(null["toggle_rate"]), ddof=1)
+    f_thr = np.exp(stats.f.expect(np.log, args=(d1, d2)) + stats.norm.isf(alpha) * s0)
+    s2 = np.var(meas["toggle_rate"], axis=0, ddof=1).mean()
+
+    def power(tau):
+        return integrate.quad(lambda q: stats.chi2.pdf(q, d2) * stats.ncf.sf(f_thr, d1, d2, K * d1 * tau**2 * q / (s2 * d2)),
+                              0, np.inf)[0]
+
+    expected = optimize.brentq(lambda t: power(t) - 0.8, 1e-5, 0.2)
+    se = det.std(ddof=1) / np.sqrt(len(det))
+    assert abs(det.mean() - expected) < 4 * se, (det.mean(), expected, se)
 
 
 def _log_scale_by_hand(x):
