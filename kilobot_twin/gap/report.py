@@ -94,9 +94,9 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
             lines += ["", "What this dataset can see: the smallest spread named with 80 % power (nothing named means "
                       "nothing larger), and the smallest the detection step alone flags with 80 % power:"]
             for eff, v in s["minimum_detectable"].items():
-                def size(x):
-                    return f"not up to {v['searched_to']:.3g}" if x is None else f"{x:.3g}"
-                lines.append(f"- {eff}: named {size(v['size'])}, detected {size(v['detection_size'])} ({v['unit']})")
+                named, detected = (f"none up to {v['searched_to']:.3g}" if x is None else f"{x:.3g}"
+                                   for x in (v["size"], v["detection_size"]))
+                lines.append(f"- {eff}: named {named}, detected {detected} ({v['unit']})")
         if s.get("estimates"):
             lines += ["", "Per-robot estimates (model.yaml) and how closely they can follow the robots' true values "
                       "from these trials (expected correlation, also about their slope against the truth; "

@@ -52,8 +52,12 @@ def test_heading_bias_named_recovered_and_gap_shrinks(tmp_path):
     assert doc["datasets"][0]["estimates"]["heading_bias"]["expected_r"] >= 0.95
     assert "heading_bias: expected r" in (tmp_path / "out" / "report.md").read_text()
     # What it can see: naming needs the flag, so no size it names is below the one it detects.
+    md = (tmp_path / "out" / "report.md").read_text()
     for eff, v in doc["datasets"][0]["minimum_detectable"].items():
         assert v["size"] is None or v["detection_size"] <= v["size"], (eff, v)
+        # and report.md says so, "none up to" the largest spread searched where no size has the power
+        named, detected = ("none up to %.3g" % v["searched_to"] if x is None else "%.3g" % x for x in (v["size"], v["detection_size"]))
+        assert f"- {eff}: named {named}, detected {detected} (" in md
     assert (tmp_path / "out" / "report.md").is_file() and (tmp_path / "out" / "gap_0.png").is_file()
     # Where the gap is: the turn rates' per-track part, and the report's table row says so.
     by = doc["datasets"][0]["gap_by_part"]
