@@ -85,7 +85,9 @@ class TwinModel:
 
 
 def _nanmean(a, axis=None):
-    with np.errstate(all="ignore"):
+    """np.nanmean without warnings: a slice with nothing seen (a robot missing from a trial) is NaN."""
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
         return np.nanmean(a, axis=axis)
 
 

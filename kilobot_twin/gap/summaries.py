@@ -228,7 +228,8 @@ def robust_sd(x, axis=None):
     """1.4826 x the median absolute deviation from the median, NaNs left out: the sd of a normal
     sample that a share of gross errors (glitches, slipped headings) does not move."""
     x = np.asarray(x, dtype=float)
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a slice with nothing seen has no sd: NaN
         med = np.nanmedian(x, axis=axis, keepdims=True)
         return 1.4826 * np.nanmedian(np.abs(x - med), axis=axis)
 

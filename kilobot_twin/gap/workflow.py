@@ -480,7 +480,7 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
         train = train_of(k)
         for c in comps:
             x = _without_wild_replicates(sims[c][:, 0, :])  # (M, N)
-            pred[c]["mean"][k] = np.nanmean(x, axis=0)
+            pred[c]["mean"][k] = E._nanmean(x, axis=0)  # NaN for a robot missing from trial k
             # Floored at the F statistics' resolution (_REL_RESOLUTION of the level) so a
             # deterministic prediction (a nuisance fitted as 0) cannot turn a tiny mismatch into
             # an infinite log-likelihood. Floored, not added to: a noiseless sensor's gains vary
@@ -579,7 +579,8 @@ def _without_wild_replicates(x, k: float = 10.0):
     from the rest (the chord-heading diffusion of before gave thousands of times the rest); one
     such replicate in 30 would set the robot's predictive spread, and through the pooled spread
     every robot's."""
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a robot missing from the trial: all NaN
         med = np.nanmedian(x, axis=0)
         scale = summaries.robust_sd(x, axis=0)
         wild = np.abs(x - med) > k * np.where(scale > 0, scale, np.inf)
