@@ -96,6 +96,8 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
             for eff, v in s["minimum_detectable"].items():
                 named, detected = (f"none up to {v['searched_to']:.3g}" if x is None else f"{x:.3g}"
                                    for x in (v["size"], v["detection_size"]))
+                if "best_power" in v:
+                    named += f" (at most {100 * v['best_power']:.0f} % power, at {v['best_at']:.3g})"
                 lines.append(f"- {eff}: named {named}, detected {detected} ({v['unit']})")
         if s.get("estimates"):
             lines += ["", "Per-robot estimates (model.yaml) and how closely they can follow the robots' true values "

@@ -1281,6 +1281,12 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         named = tau * scale if np.isfinite(tau) else None
         out[effect] = {"size": named, "detection_size": tau_flag * scale if np.isfinite(tau_flag) else None,
                        "searched_to": float(max(taus[-1], det_taus[-1])) * scale, "unit": unit, "summary_per_size": per_size}
+        if named is None and np.isfinite(pw).any():
+            # How near it came: the power need not grow without end (robots whose noise differs by
+            # factors of e^2 per sd are one loud robot among quiet ones that read the tracker's
+            # floor alike), so "none up to" can hide a spread named in 70 % of datasets.
+            j = int(np.nanargmax(pw))
+            out[effect] |= {"best_power": float(pw[j]), "best_at": float(taus[j]) * scale}
         if effect == "heading_bias" and named is not None:  # also in the twin's units, b = -omega L / v
             v = float(np.nanmean(null["speed"]))
             out[effect]["heading_bias_sd"] = float(abs(heading_bias_from_turn_rate(named, v)))
