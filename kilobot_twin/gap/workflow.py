@@ -1480,7 +1480,6 @@ def _emulation(seen, s_w2: float, drift: bool, reps: int, boot: int, seed: int, 
     return rng, emulated, stat, shift, null_mean, idx
 
 
-
 def _heldout_gain(x, drift: bool, base_absorbs: bool, noise: tuple | None = None):
     """Leave-one-trial-out log-likelihood gain per (replicate, robot) of pooled per-robot means
     (or lines, with ``drift``) over a population level; for a drift also the gain of the means
