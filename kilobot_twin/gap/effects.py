@@ -763,7 +763,7 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     # (:func:`bounded_combination`), each from its scatter over replicates at the turn rates'
     # level (one more simulation).
     s2 = _with_turn_reading(float(var[0]), var[1], var[2], target, A, model, resim)
-    if s2 is not None:
+    if s2 != var[0]:
         # The speed noises again from their own rows (the diffusion's excess is not theirs).
         rest = nnls(A3[1:, 1:] * w[1:, None], (t3[1:] - A3[1:, 0] * s2) * w[1:])[0]
         var = np.array([s2, *rest])
@@ -784,19 +784,18 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     return m
 
 
-def _with_turn_reading(d: float, v_speed: float, v_jitter: float, target, A, model: TwinModel, resim) -> float | None:
+def _with_turn_reading(d: float, v_speed: float, v_jitter: float, target, A, model: TwinModel, resim) -> float:
     """The heading-noise variance ``d`` read from the diffusion, combined with the turn rates'
     reading where that is lower (:func:`bounded_combination`; the precisions of the two readings
     from their scatter over replicates of one more simulation, at the turn rates' level): the
     fourth statistic of :func:`_noise_stats` less what the speed noises (``v_speed``,
-    ``v_jitter``) add, over the map's column (``A``, ``target``: statistics less their intercept).
-    None where the turn rates read no less (``d`` stands)."""
+    ``v_jitter``) add, over the map's column (``A``, ``target``: statistics less their intercept)."""
     if not A[3, 0] > 0:
-        return None
+        return d
     n = len(model.swarm)
     t_est = max((target[3] - A[3, 1] * v_speed - A[3, 2] * v_jitter) / A[3, 0], 0.0)
     if not d > t_est:
-        return None
+        return d
     with np.errstate(all="ignore"):
         at = model.with_traits(sigma_omega=np.full(n, np.sqrt(t_est)), sigma_v=np.full(n, np.sqrt(v_speed)),
                                speed_trial_sd=float(np.sqrt(v_jitter)), bias_trial_sd=np.zeros(n))
@@ -825,8 +824,8 @@ def fold_heading_noise(noise: TwinModel, meas: dict, resim) -> np.ndarray | None
     d = max(float((target[0] - A[0, 1] * v_speed - A[0, 2] * v_jitter) / A[0, 0]), 0.0)
     if not np.isfinite(d):
         return None
-    s2 = _with_turn_reading(d, v_speed, v_jitter, target, A, noise, resim)
-    return np.full(len(noise.swarm), np.sqrt(d if s2 is None else s2))
+    base = noise.with_traits(sigma_omega=np.full(len(noise.swarm), np.sqrt(d)))
+    return np.full(len(noise.swarm), np.sqrt(_with_turn_reading(d, v_speed, v_jitter, target, A, base, resim)))
 
 
 # --- named effects ---------------------------------------------------------------------------------
