@@ -470,11 +470,8 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
     spread. Tracking noise, glitches and late starts are fitted where the data is read
     (:func:`kilobot_twin.gap.model.measured_summaries`). Without ``resim`` (no simulations
     at hand) the noise levels stay as given; with ``noise`` (a model whose noise levels were
-    fitted already, on all trials) the speed noises are taken from it (population noise levels
-    barely move when one trial is held out, and refitting them per fold costs four simulations
-    each), and the heading noise is read from the fold's own trials through its map
-    (:func:`fold_heading_noise`): it sets the diffusion's level, which the held-out trial must
-    not.
+    fitted already, on all trials) they are taken from it: population noise levels barely move
+    when one trial is held out, and refitting them per fold costs four simulations each.
     """
     n = len(model.swarm)
     if model.kind == "motion":
@@ -483,10 +480,7 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
         b = _bias(meas["turn_rate"], m)
         m = m.with_traits(heading_bias=np.full(n, np.nanmean(b)))
         if noise is not None:
-            # The speed noises from all trials, the heading noise from the fold's own (its level
-            # sets the diffusion's, which the held-out trial must not)
-            own = fold_heading_noise(noise, meas, resim) if resim is not None else None
-            m = m.with_traits(sigma_omega=noise.swarm.sigma_omega if own is None else own, sigma_v=noise.swarm.sigma_v,
+            m = m.with_traits(sigma_omega=noise.swarm.sigma_omega, sigma_v=noise.swarm.sigma_v,
                               speed_trial_sd=noise.speed_trial_sd)
         elif resim is not None:
             m = fit_noise_levels(m, meas, resim)
@@ -762,11 +756,19 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     # the diffusion did the spread is 0 and the two readings are combined by their precisions
     # (:func:`bounded_combination`), each from its scatter over replicates at the turn rates'
     # level (one more simulation).
-    s2 = _with_turn_reading(float(var[0]), var[1], var[2], target, A, model, resim)
-    if s2 != var[0]:
-        # The speed noises again from their own rows (the diffusion's excess is not theirs).
-        rest = nnls(A3[1:, 1:] * w[1:, None], (t3[1:] - A3[1:, 0] * s2) * w[1:])[0]
-        var = np.array([s2, *rest])
+    if A[3, 0] > 0:
+        t_est = max((target[3] - A[3, 1] * var[1] - A[3, 2] * var[2]) / A[3, 0], 0.0)
+        if var[0] > t_est:
+            with np.errstate(all="ignore"):
+                at = model.with_traits(sigma_omega=np.full(n, np.sqrt(t_est)), sigma_v=np.full(n, np.sqrt(var[1])),
+                                       speed_trial_sd=float(np.sqrt(var[2])), bias_trial_sd=np.zeros(n))
+                st = _noise_stats(resim(at))
+                v_d = (float(robust_sd(st[:, 0])) / A[0, 0]) ** 2 if A[0, 0] > 0 else np.inf
+                v_t = (float(robust_sd(st[:, 3])) / A[3, 0]) ** 2
+            s2 = bounded_combination(float(var[0]), v_d, t_est, v_t)
+            # The speed noises again from their own rows (the diffusion's excess is not theirs).
+            rest = nnls(A3[1:, 1:] * w[1:, None], (t3[1:] - A3[1:, 0] * s2) * w[1:])[0]
+            var = np.array([s2, *rest])
     # The trial speeds' within-robot variance (row 1) is what every speed test and prediction
     # rests on (the F ratio's within-robot mean square, a held-out trial's spread); the speed
     # diffusion (row 2) only splits it between the two speed noises. When the split asks for
@@ -779,53 +781,8 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     m = model.with_traits(sigma_omega=np.full(n, np.sqrt(var[0])), sigma_v=np.full(n, np.sqrt(var[1])),
                           speed_trial_sd=float(np.sqrt(var[2])))
     m.noise_map = {"diffusion_per_var": float(A[0, 0]),
-                   "diffusion_within_var0": float(np.nanmean(within_var(sims[0]["diffusion"]))),
-                   "map": A.tolist(), "intercept": [float(x) for x in s[0]]}
+                   "diffusion_within_var0": float(np.nanmean(within_var(sims[0]["diffusion"])))}
     return m
-
-
-def _with_turn_reading(d: float, v_speed: float, v_jitter: float, target, A, model: TwinModel, resim) -> float:
-    """The heading-noise variance ``d`` read from the diffusion, combined with the turn rates'
-    reading where that is lower (:func:`bounded_combination`; the precisions of the two readings
-    from their scatter over replicates of one more simulation, at the turn rates' level): the
-    fourth statistic of :func:`_noise_stats` less what the speed noises (``v_speed``,
-    ``v_jitter``) add, over the map's column (``A``, ``target``: statistics less their intercept)."""
-    if not A[3, 0] > 0:
-        return d
-    n = len(model.swarm)
-    t_est = max((target[3] - A[3, 1] * v_speed - A[3, 2] * v_jitter) / A[3, 0], 0.0)
-    if not d > t_est:
-        return d
-    with np.errstate(all="ignore"):
-        at = model.with_traits(sigma_omega=np.full(n, np.sqrt(t_est)), sigma_v=np.full(n, np.sqrt(v_speed)),
-                               speed_trial_sd=float(np.sqrt(v_jitter)), bias_trial_sd=np.zeros(n))
-        st = _noise_stats(resim(at))
-        v_d = (float(robust_sd(st[:, 0])) / A[0, 0]) ** 2 if A[0, 0] > 0 else np.inf
-        v_t = (float(robust_sd(st[:, 3])) / A[3, 0]) ** 2
-    return bounded_combination(d, v_d, t_est, v_t)
-
-
-def fold_heading_noise(noise: TwinModel, meas: dict, resim) -> np.ndarray | None:
-    """A fold's heading-noise intensity, read from its own (training) trials with the all-trials
-    fit's map (``noise.noise_map``: :func:`fit_noise_levels`'s simulations, no new ones but the
-    turn rates' reading where it binds) and its speed noises: the diffusion row solved for
-    sigma_omega^2, then :func:`_with_turn_reading`. None without a map (a model not fitted here).
-
-    The fold's diffusion then comes from its training trials, as its held-out spread says
-    (:func:`leverage`: a population level, 1 + 1/K'). Taken from the all-trials fit, the held-out
-    trial among them, a trial's level varied by 1 - 1/K of its own variance about it, and the
-    gap's per-trial level part of the diffusion averaged -0.46 (standard error 0.10) on 20 synth
-    null datasets of 4 trials: 0.75 / 1.33 - 1 = -0.44 expected."""
-    nm = noise.noise_map
-    if "map" not in nm or not nm["map"][0][0] > 0:
-        return None
-    A, target = np.asarray(nm["map"]), _noise_stats(meas) - np.asarray(nm["intercept"])
-    v_speed, v_jitter = float(np.mean(noise.swarm.sigma_v**2)), float(noise.speed_trial_sd**2)
-    d = max(float((target[0] - A[0, 1] * v_speed - A[0, 2] * v_jitter) / A[0, 0]), 0.0)
-    if not np.isfinite(d):
-        return None
-    base = noise.with_traits(sigma_omega=np.full(len(noise.swarm), np.sqrt(d)))
-    return np.full(len(noise.swarm), np.sqrt(_with_turn_reading(d, v_speed, v_jitter, target, A, base, resim)))
 
 
 # --- named effects ---------------------------------------------------------------------------------
