@@ -1237,7 +1237,6 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
                 s_w2, dof = rel_floor, None
             tau_det = float(np.sqrt(s_w2 * np.expm1(z * s0 + shift) / max(k_eff, 1.0)))
             level = float(np.nanmean(x))
-        taus = tau_det * np.geomspace(0.7, 16.0, 20)
         noise, scale = None, (1.0 if comp == "turn_rate" else 1.0 / abs(level))
         if effect == "motion_noise":
             # Robots whose heading-noise intensities differ by a factor: sizes are the sd over robots
@@ -1252,8 +1251,6 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             noise = (lvl, float(np.clip(1.0 - nm.get("diffusion_within_var0", 0.0) / max(s_w2, 1e-300), 0.0, 1.0)))
             # the detection size in those units: the summary's sd over robots is lvl sqrt(exp(4 tau^2) - 1)
             tau_det = 0.5 * float(np.sqrt(np.log1p((tau_det / lvl) ** 2)))
-            taus = tau_det * np.geomspace(0.7, 16.0, 20)
-            taus = taus[taus <= _MAX_LOG_SD] if (taus <= _MAX_LOG_SD).any() else taus[:1]
             scale, unit = 1.0, _NOISE_UNIT
         # The effects a drift contains (the heading bias) compete where a signal they explain is flagged.
         contained = [n for n in stats if drift and any(E.LIBRARY[r].explains(n) for r in E.LIBRARY[effect].extends)]
@@ -1261,6 +1258,7 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         # The other summaries the effect predicts per robot (a sensor gain's offsets): their
         # estimates cost held-out likelihood where robots do not differ in them.
         companions = [np.isfinite(meas[c]) for c in E.LIBRARY[effect].predicts if c != comp and c in meas]
+        taus = _spreads(tau_det, 0.7, 20, noise is not None)
         pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0 + shift, seed=seed, noise=noise,
                           gain_level=gain_level, dof=dof, rival_threshold=rival, companions=companions,
                           threads=threads, stop_at=power)
@@ -1268,9 +1266,7 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         # The detection size on the same emulated datasets, from well below the closed form's
         # (which overstates it, see detection_power); never above the size named (naming needs
         # the flag: only the interpolation between spreads could put it above).
-        det_taus = tau_det * np.geomspace(0.2, 16.0, 28)
-        if noise is not None:
-            det_taus = det_taus[det_taus <= _MAX_LOG_SD] if (det_taus <= _MAX_LOG_SD).any() else det_taus[:1]
+        det_taus = _spreads(tau_det, 0.2, 28, noise is not None)
         tau_flag = min(_first_crossing(det_taus, detection_power(seen, s_w2, det_taus, drift, z_det * s0 + shift, seed=seed,
                                                                  noise=noise, dof=dof), power), tau)
         per_size = 1.0 if noise is not None else float((sensitivity or {}).get(comp, 1.0))
@@ -1291,6 +1287,16 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             v = float(np.nanmean(null["speed"]))
             out[effect]["heading_bias_sd"] = float(abs(heading_bias_from_turn_rate(named, v)))
     return out
+
+
+def _spreads(tau_det: float, lowest: float, n: int, capped: bool) -> np.ndarray:
+    """The spreads the MDE search tries: ``n`` from ``lowest`` to 16 times the closed form's
+    detection size, geometrically; noise intensities (``capped``) up to :data:`_MAX_LOG_SD` (at
+    least the first)."""
+    taus = tau_det * np.geomspace(lowest, 16.0, n)
+    if not capped:
+        return taus
+    return taus[taus <= _MAX_LOG_SD] if (taus <= _MAX_LOG_SD).any() else taus[:1]
 
 
 def about_lines(x):

@@ -20,6 +20,15 @@ def _logpdf(y, mu, var):
     return -huber(HUBER_K, (y - mu) / sd) - np.log(sd)
 
 
+def _anova_by_hand(x):
+    """ln of the between- and within-robot mean squares of one-way layouts x (..., K, N)."""
+    K, N = x.shape[-2:]
+    m_i = x.mean(-2, keepdims=True)
+    msb = K * ((m_i - x.mean((-2, -1), keepdims=True)) ** 2).sum((-2, -1)) / (N - 1)
+    msw = ((x - m_i) ** 2).sum((-2, -1)) / (N * (K - 1))
+    return np.log(msb), np.log(msw)
+
+
 def test_clock_drift_at_the_stated_size_is_flagged_about_80_percent_of_the_time():
     n, K, dur, dt = 12, 4, 60.0, 1 / 30
     T = int(round(dur / dt)) + 1
@@ -64,13 +73,8 @@ def test_the_detection_size_is_where_the_non_central_f_test_has_80_percent_power
     det = np.array([g["detection_size"] for g in got])
     assert all(g["detection_size"] <= g["size"] for g in got)  # naming needs the flag
 
-    def ln_f(x):  # one-way ANOVA by hand
-        m_i = x.mean(-2, keepdims=True)
-        msb = K * ((m_i - x.mean((-2, -1), keepdims=True)) ** 2).sum((-2, -1)) / d1
-        msw = ((x - m_i) ** 2).sum((-2, -1)) / d2
-        return np.log(msb / msw)
-
-    s0 = np.std(ln_f(null["toggle_rate"]), ddof=1)
+    ln_msb, ln_msw = _anova_by_hand(null["toggle_rate"])
+    s0 = np.std(ln_msb - ln_msw, ddof=1)
     f_thr = np.exp(stats.f.expect(np.log, args=(d1, d2)) + stats.norm.isf(alpha) * s0)
     s2 = np.var(meas["toggle_rate"], axis=0, ddof=1).mean()
 
@@ -525,12 +529,6 @@ def test_a_resolution_that_floors_the_data_and_the_null_alike_does_not_count_as_
         return {"gain": 1000.0 + np.sqrt(0.3) * rng.standard_normal(shape), "offset": 5.0 + rng.standard_normal(shape),
                 "gain_floor": np.full(shape, floor), "offset_floor": np.full(shape, 1e-6)}
 
-    def anova(g):  # ln msb, ln msw of one-way layouts (..., K, N)
-        m_i = g.mean(-2, keepdims=True)
-        msb = K * ((m_i - g.mean((-2, -1), keepdims=True)) ** 2).sum((-2, -1)) / (N - 1)
-        msw = ((g - m_i) ** 2).sum((-2, -1)) / (N * (K - 1))
-        return np.log(msb), np.log(msw)
-
     state = rng.bit_generator.state
     null, meas = light(1e-6, (M,)), light(1e-6)
     free = minimum_detectable("light_sweep", meas, null, K, 0.01)["sensor_gain"]["detection_size"]
@@ -539,8 +537,8 @@ def test_a_resolution_that_floors_the_data_and_the_null_alike_does_not_count_as_
     floored = minimum_detectable("light_sweep", meas, null, K, 0.01)["sensor_gain"]["detection_size"]
 
     z = norm.isf(0.01 / 2) + norm.isf(0.2)
-    b_null, w_null = anova(null["gain"])
-    _, w_data = anova(meas["gain"])
+    b_null, w_null = _anova_by_hand(null["gain"])
+    _, w_data = _anova_by_hand(meas["gain"])
     s_free, s_floored = np.std(b_null - w_null, ddof=1), np.std(b_null, ddof=1)
     shift = -w_data - np.mean(-w_null)
     expected = np.sqrt(np.expm1(z * s_floored + shift) / np.expm1(z * s_free))
