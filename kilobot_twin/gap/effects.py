@@ -461,7 +461,8 @@ def _match_speed_level(m: TwinModel, target: float, resim, steps: int = BASE_LEV
     return m, ref
 
 
-def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinModel | None = None) -> TwinModel:
+def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinModel | None = None,
+             resim_level=None) -> TwinModel:
     """Identical robots whose population parameters and every nuisance are fitted to the data.
 
     motion: speed level; heading-noise and speed-noise intensities (:func:`fit_noise_levels`,
@@ -472,6 +473,9 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
     at hand) the noise levels stay as given; with ``noise`` (a model whose noise levels were
     fitted already, on all trials) they are taken from it: population noise levels barely move
     when one trial is held out, and refitting them per fold costs four simulations each.
+    ``resim_level`` (default ``resim``) simulates for the speed level's secant steps
+    (:func:`_match_speed_level`); given the same random numbers in every call, two steps differ
+    by the speed they change alone, and the secant is not Monte Carlo noise.
     """
     n = len(model.swarm)
     if model.kind == "motion":
@@ -490,7 +494,7 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
             # noise shortens it), so the one ratio above, taken against the start model's
             # simulation, left the level off (2.4 % at 5 mm of tracking noise, 10 Hz: 10 level
             # sds in every trial, a gap of 10 on null data). A ratio step, then secant steps.
-            m, ref = _match_speed_level(m, np.nanmean(meas["speed"]), resim)
+            m, ref = _match_speed_level(m, np.nanmean(meas["speed"]), resim_level or resim)
             b = _bias(meas["turn_rate"], m)
             m = m.with_traits(heading_bias=np.full(n, np.nanmean(b)))
         # Identical robots (Eq. 4): all of the bias's spread beyond noise is trial-to-trial. A
@@ -1168,10 +1172,15 @@ class ClockDrift(Effect):
 BASE_PREDICTS = {"motion": {"turn_rate": "pop", "speed": "pop", "diffusion": "pop"}, "light_sweep": {"gain": "pop", "offset": "pop"},
                  "blink": {"toggle_rate": "pop"}}
 _RANK = {None: 0, "pop": 1, "mean": 2, "line": 3}
+#: Summaries whose population level a fit matches to a simulation of the training trials (the
+#: base's speed, gain and offset, and clock rate, :func:`fit_base`; an effect's per-robot values
+#: of them keep the simulation's mean, :func:`smooth_over_robots`): the matched level is off by
+#: the simulation's Monte Carlo error as well as by the data's, 1 / M of it for M replicates.
+MATCHED = {"motion": ("speed",), "light_sweep": ("gain", "offset"), "blink": ("toggle_rate",)}
 
 
 def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit_base: bool = True,
-             library: dict | None = None, model: TwinModel | None = None):
+             library: dict | None = None, model: TwinModel | None = None, m_fit: int | None = None):
     """Estimation part of the predictive variance of trial ``k``'s summary, as a multiple of
     one trial's simulated variance: ``(h_track, h_level)`` for one robot's summary and for the
     mean over robots.
@@ -1185,7 +1194,10 @@ def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit
     for the mean over robots), a robot's mean (``1 / K'``) or a robot's line (regression leverage
     of trial ``k``); summaries nothing fits (a nominal level) have none. Per-robot estimates
     pooled towards the population (``model.pooling``, :func:`partial_pool`) err by w_i times a
-    free estimate's variance: ``h_track`` is then per robot.
+    free estimate's variance: ``h_track`` is then per robot. Where the fit matched the
+    summary's level to ``m_fit`` replicates of the training trials (:data:`MATCHED`), the level's
+    Monte Carlo error adds ``1 / m_fit`` of its estimation error: 1 / (N K' m_fit) and
+    1 / (K' m_fit).
     """
     how = BASE_PREDICTS.get(kind, {}).get(component) if fit_base else None
     for name in names:
@@ -1196,6 +1208,14 @@ def leverage(kind: str, names, component: str, train, k: int, n_robots: int, fit
     Kp = len(t)
     if how is None or Kp == 0:
         return 0.0, 0.0
+    mc = 1.0 / (Kp * m_fit) if m_fit and component in MATCHED.get(kind, ()) else 0.0
+    h_track, h_level = _estimation_leverage(how, t, k, n_robots, model, component)
+    return h_track + mc / n_robots, h_level + mc
+
+
+def _estimation_leverage(how: str, t, k: int, n_robots: int, model: TwinModel | None, component: str):
+    """:func:`leverage`'s estimation part for the predictor ``how`` fitted on trials ``t``."""
+    Kp = len(t)
     if how == "pop":
         return 1.0 / (n_robots * Kp), 1.0 / Kp
     sxx = float(((t - t.mean()) ** 2).sum())

@@ -74,7 +74,7 @@ class GapSettings:
 
 
 _PURPOSE = {"base_ref": 1, "base_probe": 2, "effect_ref": 3, "effect_resim": 4, "heldout": 5, "null": 6, "bootstrap": 7, "power": 8,
-            "sensitivity": 9}
+            "sensitivity": 9, "base_level": 10}
 
 
 def child_seed(root: int, purpose: str, *keys: int) -> int:
@@ -419,8 +419,11 @@ class _Fitter:
                 def resim_base(m):
                     return simulate(self.cond, m, M, child_seed(self.gs.seed, "base_probe", next(calls)), trials)
 
+                def resim_level(m):  # the same random numbers in every step (common random numbers)
+                    return simulate(self.cond, m, M, child_seed(self.gs.seed, "base_level"), trials)
+
                 noise = None if key[1] == all_trials else self.fit((), all_trials)
-                model = E.fit_base(model, self.meas_on(np.asarray(trials)), ref, resim_base, noise)
+                model = E.fit_base(model, self.meas_on(np.asarray(trials)), ref, resim_base, noise, resim_level)
             self.cache[key] = model
             return model
         prefix = self.fit(names[:-1], trials)
@@ -492,9 +495,17 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             b, centre = level_spread(x) if scales else (0.0, None)
             var_i, pooled = _replicate_spread(x, centre)
             floor = float(_rel_floor(x))
-            h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base, fitter.gs.library, model)
+            h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base, fitter.gs.library, model,
+                                         fitter.gs.m_fold)
             if scales:
                 h_track = E.spread_leverage(h_track, b)
+            # The predicted mean is itself a mean of the replicates kept, so it is off by their
+            # Monte Carlo error too: var / M of a robot's summary, and as much of the mean over
+            # robots. Without it a right model's held-out tracks read 1 + 1/M of their variance
+            # (null turn-rate track cells of +0.03 in every world at M = 30).
+            mc = 1.0 / np.maximum(np.isfinite(x).sum(0), 1)
+            h_track = h_track + mc
+            h_level = h_level + float(np.mean(mc))
             pred[c]["sd"][k] = np.sqrt(np.maximum(var_i, floor) * (1 + h_track))
             pred[c]["sd_level"][k] = np.sqrt(max(pooled, floor) * (1 + h_level))
     return pred

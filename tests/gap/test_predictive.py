@@ -37,6 +37,52 @@ def test_leverage_by_predictor():
     # Other kinds.
     assert E.leverage("light_sweep", ("sensor_gain",), "offset", [1, 2, 3], 0, 12) == pytest.approx((1 / 3, 1 / 3))
     assert E.leverage("blink", (), "toggle_rate", [1, 2, 3], 0, 16) == pytest.approx((1 / 48, 1 / 3))
+    # A level matched to m_fit simulated replicates of the 3 training trials carries their Monte
+    # Carlo error, 1 / m_fit of the data's; a level read off the data (the turn rate) does not.
+    assert E.leverage("motion", (), "speed", [0, 1, 2], 3, 12, m_fit=10) == pytest.approx((1 / 36 + 1 / 360, 1 / 3 + 1 / 30))
+    assert E.leverage("blink", ("clock_drift",), "toggle_rate", [1, 2, 3], 0, 16, m_fit=5) == pytest.approx((1 / 3 + 1 / 240, 1 / 3 + 1 / 15))
+    assert E.leverage("motion", (), "turn_rate", [0, 1, 2], 3, 12, m_fit=10) == pytest.approx((1 / 36, 1 / 3))
+
+
+def test_the_level_spread_carries_the_scatter_of_predictions_from_few_simulations(tmp_path):
+    """A held-out prediction is the mean of M simulated replicates, and a fold's speed level is
+    matched to m_fold replicates of its training trials: both scatter from seed to seed, and the
+    predictive variance must carry that. Measured, not computed: one dataset (nominal synth, 12
+    robots x 4 trials) scored by the base under 48 seeds with M = 16, m_fold = 10 and under 6
+    with M = 256, m_fold = 160. The variance of a trial's level (the mean over robots) at the
+    small counts less that at the large ones must equal the scatter of the small counts' level
+    predictions over seeds (turn rates: M alone; speeds: both). The level's variance is the
+    robots' mean simulated variance, unbiased at any M (a robot's track spread is pulled towards
+    a median, which moves with M). The noise levels every fold takes from the fit on all trials
+    are held fixed (one fit), else their own Monte Carlo error moves every variance from seed to
+    seed by more than the difference.
+
+    Tolerance: the scatter is a variance on 47 degrees of freedom per fold, averaged over 4
+    folds: relative sd sqrt(2 / 47) / 2 = 0.10; 4 sd allowed. Measured: turn rates 1.21, speeds
+    1.03. Without the replicates' term the turn rates read 0.29; with the speed level's secant
+    steps on fresh random numbers each (the slope then Monte Carlo noise, clipped at a quarter
+    of the ratio's) the speeds read 0.58, their scatter half again what the terms carry. (The
+    matched level's term alone, 1/30 of 1/16 + 1/30, moves the speeds to 0.68: within the
+    tolerance; :func:`test_leverage_by_predictor` checks it by hand.)"""
+    synth("motion", "", tmp_path / "d", seed=4, duration_s=40.0)
+    cond, meas = measured_summaries(measured.load(tmp_path / "d"))
+    start = E.nominal_model("motion", cond.robot_ids)
+    every = tuple(range(cond.trials))
+    noise = _Fitter(cond, meas, start, GapSettings(seed=99, m_ref=40), True).fit((), every)
+    preds = {(16, 10): [], (256, 160): []}
+    for (M, mf), out in preds.items():
+        for seed in range(48 if M == 16 else 6):
+            fitter = _Fitter(cond, meas, start, GapSettings(seed=100 + seed, m_fold=mf, m_score=M), True)
+            fitter.cache[((), every)] = noise  # the all-trials fit's noise levels held fixed: folds alone scatter
+            out.append(_heldout(fitter, (), "motion"))
+    n = np.isfinite(meas["turn_rate"]).sum(1)
+    for c in ("turn_rate", "speed"):
+        few, many = preds[(16, 10)], preds[(256, 160)]
+        var_few = np.mean([p[c]["sd_level"] ** 2 / n for p in few], axis=0)
+        var_many = np.mean([p[c]["sd_level"] ** 2 / n for p in many], axis=0)
+        scatter = np.var([np.nanmean(p[c]["mean"], axis=1) for p in few], axis=0, ddof=1)
+        ratio = np.mean(var_few - var_many) / np.mean(scatter)
+        assert abs(ratio - 1) < 4 * 0.10, (c, ratio)
 
 
 def test_robots_that_differ_in_noise_are_calibrated_on_held_out_trials(tmp_path):
