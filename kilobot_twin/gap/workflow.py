@@ -501,11 +501,12 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
                 h_track = E.spread_leverage(h_track, b)
             # The predicted mean is itself a mean of the replicates kept, so it is off by their
             # Monte Carlo error too: var / M of a robot's summary, and as much of the mean over
-            # robots. Without it a right model's held-out tracks read 1 + 1/M of their variance
-            # (null turn-rate track cells of +0.03 in every world at M = 30).
-            mc = 1.0 / np.maximum(np.isfinite(x).sum(0), 1)
+            # robots (those simulated: a robot missing from the trial has none). Without it a
+            # right model's held-out tracks read 1 + 1/M of their variance.
+            reps = np.isfinite(x).sum(0)
+            mc = 1.0 / np.maximum(reps, 1)
             h_track = h_track + mc
-            h_level = h_level + float(np.mean(mc))
+            h_level = h_level + (float(np.mean(mc[reps > 0])) if (reps > 0).any() else 0.0)
             pred[c]["sd"][k] = np.sqrt(np.maximum(var_i, floor) * (1 + h_track))
             pred[c]["sd_level"][k] = np.sqrt(max(pooled, floor) * (1 + h_level))
     return pred
