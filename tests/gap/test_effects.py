@@ -456,3 +456,55 @@ def test_smoothing_over_robots_averages_the_monte_carlo_error_away():
     # constant and the first trait alone read every robot at the mean offset)
     lin = 2.0 + 3.0 * (g[:7] - 2.2) + 1.0 * o[:7]
     np.testing.assert_allclose(E.smooth_over_robots(lin, g[:7], o[:7]), lin, rtol=1e-9)
+
+
+def _chord_world(c, n=16, trials=6, reps=10, noise=0.0, seed=0):
+    """A stand-in simulator whose per-robot speed summary is sqrt(f^2 + c^2) for speed factor f:
+    a chord lengthened by independent tracking noise of a fixed size, whose elasticity
+    d log y / d log f = f^2 / (f^2 + c^2) is below 1, and whose inverse is f = sqrt(y^2 - c^2)."""
+    rng = np.random.default_rng(seed)
+
+    def resim(m):
+        f = m.swarm.speed_factor
+        return {"speed": np.sqrt(f**2 + c**2)[None, None, :] + noise * rng.standard_normal((reps, trials, n))}
+
+    return resim
+
+
+def test_the_robots_own_fixed_point_steps_by_the_summary_s_elasticity():
+    """A summary y = sqrt(f^2 + c^2) with c^2 = 2/3 has elasticity 0.6 at f = 1: a ratio step
+    leaves 1 - 0.6 = 0.4 of each robot's error, two of them 0.16 (what the third world's
+    heavy-noise datasets showed). Newton's step on the log scale with the elasticity read off
+    the smooth fit over robots converges quadratically: after two steps each robot's factor is
+    the hand inverse sqrt(y^2 - c^2) up to the fit's own misfit. Robots alike (no spread to read an
+    elasticity from) take the ratio step."""
+    n, c = 16, np.sqrt(2 / 3)
+    truth = 1.0 + 0.12 * np.random.default_rng(5).standard_normal(n)
+    target = np.sqrt(truth**2 + c**2)
+    # the start a single ratio to the population would give: proportional to the summary
+    model = E.nominal_model("motion", np.arange(n))
+    start = target / np.sqrt(1 + c**2)
+    m0 = model.with_traits(speed_factor=start)
+    resim = _chord_world(c, n)
+    fitted = E._own_fixed_point(m0, "speed_factor", "speed", target, resim, 2, elastic=True).swarm.speed_factor
+    # the fixed point is where the fit over robots (a quadratic in f) meets the target, so it
+    # misses the inverse by the quadratic's own misfit to sqrt(f^2 + c^2) over the slope
+    misfit = np.polyval(np.polyfit(truth, target, 2), truth) - target
+    bound = 2 * np.max(np.abs(misfit)) / np.min(truth / target)
+    assert bound < 0.01 * truth.std()  # (the misfit is small: 0.3 % of the spread)
+    assert np.max(np.abs(fitted - truth)) < bound, (np.max(np.abs(fitted - truth)), bound)
+    # the ratio steps leave 0.16 of the error (0.4 per step, as the elasticity 0.6 says)
+    ratio = E._own_fixed_point(m0, "speed_factor", "speed", target, resim, 2).swarm.speed_factor
+    left = np.polyfit(start - truth, ratio - truth, 1)[0]
+    assert abs(left - 0.4**2) < 0.02, left
+    # with Monte Carlo error in the simulated summaries (sd 0.02 per robot-trial, 60 a robot),
+    # the fit over robots still reads the elasticity: factors within 4 sd of the error a
+    # robot's own mean would carry (0.02 / sqrt(60) / 0.6 in f, before the smoothing)
+    noisy = E._own_fixed_point(m0, "speed_factor", "speed", target, _chord_world(c, n, noise=0.02, seed=1), 2, elastic=True)
+    assert np.max(np.abs(noisy.swarm.speed_factor - truth)) < 4 * 0.02 / np.sqrt(60) / 0.6
+    # robots alike: the elasticity is not measured, so the step is the ratio (no 4x amplification
+    # of the population's mismatch by a clipped elasticity of 0.25)
+    alike = model.with_traits(speed_factor=np.full(n, 1.0))
+    goal = np.full(n, 1.05 * np.sqrt(1 + c**2))
+    one = E._own_fixed_point(alike, "speed_factor", "speed", goal, resim, 1, elastic=True).swarm.speed_factor
+    np.testing.assert_allclose(one, 1.05, rtol=1e-12)
