@@ -53,6 +53,10 @@ class Conditions:
     #: origin_y)) in m (:func:`summaries.position_lattice`), or None: the twin is observed
     #: through the same grid, after its tracking noise.
     lattice: tuple | None = None
+    #: The camera's residual radial distortion fitted to the data's tracks
+    #: (:func:`summaries.lens_distortion`: ``k1_per_m2`` and ``centre_m``), or None: the twin's
+    #: true positions are seen through it before the tracking noise, as the data's were.
+    lens: dict | None = None
     #: What the robots were programmed to do, from the dataset's meta: the commanded speed
     #: (motion; per-robot speed factors are relative to it) and the LED program (blink: toggle
     #: every ``half_period_ticks`` of a clock at ``tick_hz``; clock rates are relative to it).
@@ -114,10 +118,17 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         # independent world 3098's levels: 3.3e-8 against 1.5e-8 m^2/s^2; read against the
         # whole error, 1.6e-8).
         x, y = summaries.mask_before_onset(x, y, whole_tracking_error(corr["white_m"], corr["correlated_m"], lattice))
+        # A lens that stretches the field's edges lengthens a robot's chords there, so robots that
+        # range farther seem faster than they are (fitted speed factors 7-13 % too spread at
+        # k1 = 0.05-0.06 / m^2, third world 3204, 3210, 3213): the twin sees its robots through
+        # the same lens, and starts them where the data's first positions were, undistorted.
+        lens = summaries.lens_distortion(x, y, ds.dt_s)
         x, y = x[..., ::q], y[..., ::q]
         observed = np.isfinite(x)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed, _start_poses(x, y, dt_s),
-                          corr["white_m"], corr["correlated_m"], corr["tau_s"], lattice=lattice,
+        x0, y0, th0 = _start_poses(x, y, dt_s)
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed,
+                          (*summaries.lens_undistort(x0, y0, lens), th0),
+                          corr["white_m"], corr["correlated_m"], corr["tau_s"], lattice=lattice, lens=lens,
                           forward_speed_m_s=float(ds.meta.get("nominal_speed_m_s", synth.FORWARD_SPEED_M_S)))
         s = summaries.motion(x, y, dt_s, wander_lags_s=summaries.wander_lags(total_tracking_noise(cond)))
     elif kind == "light_sweep":
@@ -222,20 +233,24 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
         T = mask.shape[-1]
         x, y = res.traj["x"][..., :T], res.traj["y"][..., :T]
         f = 1.0 + speed_trial_sd * rng.standard_normal(x.shape[:-1] + (1,)) if speed_trial_sd > 0 else None
-        # The speed's trial jitter, tracking noise, then the data's gaps; in place (the same values
-        # as start + f (a - start) + noise * z, without temporaries the size of the tracks).
+        # The speed's trial jitter, the lens (if any), tracking noise, then the data's gaps; in place
+        # (the values of start + f (a - start) + noise * z, without temporaries the size of the
+        # tracks; the lens makes one).
         hidden = ~mask
+        if f is not None:
+            for a in (x, y):
+                a0 = a[..., :1].copy()
+                a -= a0
+                a *= f
+                a += a0
+        if cond.lens is not None:
+            x, y = summaries.lens_distort(x, y, cond.lens)
         tracks = []
         for axis, a in enumerate((x, y)):
             z = rng.standard_normal(mask.shape)
             z *= cond.tracking_noise_m
             if cond.tracking_correlated_m > 0:
                 z += observe.correlated_noise(rng, mask.shape, cond.tracking_correlated_m, cond.tracking_tau_s, cond.dt_s)
-            if f is not None:
-                a0 = a[..., :1].copy()
-                a -= a0
-                a *= f
-                a += a0
             z += a
             if cond.lattice is not None:  # reported in whole pixels, as the data are
                 summaries.quantize(z, *cond.lattice[axis], out=z)

@@ -1568,7 +1568,8 @@ def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
                 "tracking_noise_m": float(cond.tracking_noise_m),
                 **({"tracking_correlated_m": float(cond.tracking_correlated_m), "tracking_tau_s": float(cond.tracking_tau_s)}
                    if cond.tracking_correlated_m > 0 else {}),
-                **({"pixel_m": [float(g[0]) for g in cond.lattice]} if cond.lattice is not None else {})}
+                **({"pixel_m": [float(g[0]) for g in cond.lattice]} if cond.lattice is not None else {}),
+                **({"lens_k1_per_m2": cond.lens["k1_per_m2"], "lens_centre_m": list(cond.lens["centre_m"])} if cond.lens is not None else {})}
     if base.kind == "light_sweep":
         return {"sensor_noise_counts": float(sw.sensor_noise.mean()),
                 "sensor_offset_trial_sd_counts": float(sw.sensor_offset_trial_sd.mean()),
