@@ -54,8 +54,9 @@ class Conditions:
     #: through the same grid, after its tracking noise.
     lattice: tuple | None = None
     #: The camera's residual radial distortion fitted to the data's tracks
-    #: (:func:`summaries.lens_distortion`: ``k1_per_m2`` and ``centre_m``), or None: the twin's
-    #: true positions are seen through it before the tracking noise, as the data's were.
+    #: (:func:`summaries.lens_distortion`: ``k1_per_m2`` and ``centre_m``), or None. The data's
+    #: positions are undistorted by it before they are summarised, so the twin, observed without
+    #: a lens, is compared with positions on the floor.
     lens: dict | None = None
     #: What the robots were programmed to do, from the dataset's meta: the commanded speed
     #: (motion; per-robot speed factors are relative to it) and the LED program (blink: toggle
@@ -120,14 +121,17 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         x, y = summaries.mask_before_onset(x, y, whole_tracking_error(corr["white_m"], corr["correlated_m"], lattice))
         # A lens that stretches the field's edges lengthens a robot's chords there, so robots that
         # range farther seem faster than they are (fitted speed factors 7-13 % too spread at
-        # k1 = 0.05-0.06 / m^2, third world 3204, 3210, 3213): the twin sees its robots through
-        # the same lens, and starts them where the data's first positions were, undistorted.
+        # k1 = 0.05-0.06 / m^2, third world 3204, 3210, 3213): the data's positions are
+        # undistorted. (Observing the twin through the lens instead reproduced it along the twin's
+        # own paths, not the data's: third world 3213's trial speeds then varied more within a
+        # robot in the noiseless twin than in the data, the speed noise was fitted at 0, and the
+        # null dataset's held-out gap was 15.4.) The tracker's noise and grid are read before:
+        # a lens stretches them by a few per cent at most.
         lens = summaries.lens_distortion(x, y, ds.dt_s)
+        x, y = summaries.lens_undistort(x, y, lens)
         x, y = x[..., ::q], y[..., ::q]
         observed = np.isfinite(x)
-        x0, y0, th0 = _start_poses(x, y, dt_s)
-        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed,
-                          (*summaries.lens_undistort(x0, y0, lens), th0),
+        cond = Conditions(kind, np.array(ds.robots), ds.trials, ds.span_s, dt_s, observed, _start_poses(x, y, dt_s),
                           corr["white_m"], corr["correlated_m"], corr["tau_s"], lattice=lattice, lens=lens,
                           forward_speed_m_s=float(ds.meta.get("nominal_speed_m_s", synth.FORWARD_SPEED_M_S)))
         s = summaries.motion(x, y, dt_s, wander_lags_s=summaries.wander_lags(total_tracking_noise(cond)))
@@ -233,24 +237,20 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
         T = mask.shape[-1]
         x, y = res.traj["x"][..., :T], res.traj["y"][..., :T]
         f = 1.0 + speed_trial_sd * rng.standard_normal(x.shape[:-1] + (1,)) if speed_trial_sd > 0 else None
-        # The speed's trial jitter, the lens (if any), tracking noise, then the data's gaps; in place
-        # (the values of start + f (a - start) + noise * z, without temporaries the size of the
-        # tracks; the lens makes one).
+        # The speed's trial jitter, tracking noise, then the data's gaps; in place (the same values
+        # as start + f (a - start) + noise * z, without temporaries the size of the tracks).
         hidden = ~mask
-        if f is not None:
-            for a in (x, y):
-                a0 = a[..., :1].copy()
-                a -= a0
-                a *= f
-                a += a0
-        if cond.lens is not None:
-            x, y = summaries.lens_distort(x, y, cond.lens)
         tracks = []
         for axis, a in enumerate((x, y)):
             z = rng.standard_normal(mask.shape)
             z *= cond.tracking_noise_m
             if cond.tracking_correlated_m > 0:
                 z += observe.correlated_noise(rng, mask.shape, cond.tracking_correlated_m, cond.tracking_tau_s, cond.dt_s)
+            if f is not None:
+                a0 = a[..., :1].copy()
+                a -= a0
+                a *= f
+                a += a0
             z += a
             if cond.lattice is not None:  # reported in whole pixels, as the data are
                 summaries.quantize(z, *cond.lattice[axis], out=z)
