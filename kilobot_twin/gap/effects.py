@@ -921,9 +921,14 @@ class SpeedHeterogeneity(Effect):
         speed, w = partial_pool(meas["speed"])
         ratio = speed / _nanmean(ref["speed"], axis=(0, 1))
         m = model.with_traits(speed_factor=model.swarm.speed_factor * ratio).pooled("speed", w)
-        m = _own_fixed_point(m, "speed_factor", "speed", speed, resim, iterations, elastic=True)
-        # (speed factors scale the summary, so the spread-keeping estimates scale alike)
-        return m.with_individual({"speed_factor": w}, speed_factor=m.swarm.speed_factor * partial_pool(meas["speed"], keep_spread=True)[0] / speed)
+        m, e = _own_fixed_point(m, "speed_factor", "speed", speed, resim, iterations, elastic=True)
+        # the spread-keeping estimates: each robot's summary ratio to its pooled one, through the
+        # elasticity its steps took (where the summary moves 0.6 % per 1 %, a summary 1 % further
+        # from the population's is a speed 1.7 % further)
+        keep = partial_pool(meas["speed"], keep_spread=True)[0] / speed
+        with np.errstate(all="ignore"):
+            scale = np.where(keep > 0, keep ** (1.0 / e), keep)
+        return m.with_individual({"speed_factor": w}, speed_factor=m.swarm.speed_factor * scale)
 
 
 def smooth_over_robots(y, *traits):
@@ -973,7 +978,8 @@ def _smooth_fit(y, *traits):
     return fitted, G @ beta, np.sqrt(np.einsum("ij,jk,ik->i", G, cov, G))
 
 
-def _own_fixed_point(m: TwinModel, trait: str, summary: str, target, resim, iterations: int, elastic: bool = False) -> TwinModel:
+def _own_fixed_point(m: TwinModel, trait: str, summary: str, target, resim, iterations: int,
+                     elastic: bool = False) -> tuple[TwinModel, np.ndarray]:
     """Fixed-point steps of a per-robot trait that scales a summary, against each robot's own
     simulation read through its smooth fit over the robots' traits (:func:`smooth_over_robots`):
     trait_i *= target_i / simulated_i (where both are finite and positive), for a summary that
@@ -987,7 +993,10 @@ def _own_fixed_point(m: TwinModel, trait: str, summary: str, target, resim, iter
     noise lengthens each chord by about the same amount, so the speed summary moves by 0.6 %
     per 1 % of speed at 8 mm of noise on 7 mm/s robots, two ratio steps left 16 % of each
     robot's difference from the population and the fitted speed factors came out with a slope of
-    0.78-0.91 on the truth (third world 3202, 3215, 3216)."""
+    0.78-0.91 on the truth (third world 3202, 3215, 3216).
+
+    Returns the model and the elasticity each robot's last step took (1 without steps)."""
+    e = np.ones(len(m.swarm))
     for _ in range(iterations if resim is not None else 0):
         cur = m.swarm.values[trait]
         sim, slope, se = _smooth_fit(_nanmean(resim(m)[summary], axis=(0, 1)), cur)
@@ -1001,7 +1010,7 @@ def _own_fixed_point(m: TwinModel, trait: str, summary: str, target, resim, iter
         with np.errstate(all="ignore"):
             step = np.exp(np.log(target / np.where(ok, sim, 1.0)) / e)
         m = m.with_traits(**{trait: np.where(ok, cur * step, cur)})
-    return m
+    return m, e
 
 
 #: The largest standard error of a summary's elasticity for :func:`_own_fixed_point` to use it
@@ -1179,7 +1188,7 @@ class ClockDrift(Effect):
         else:
             spread = max(_spread_own(meas["toggle_rate"]) - _timing_var(_spread_own, ref, model, resim), 0.0)
             m = model.with_traits(clock_rate=c, clock_trial_sd=np.full(n, np.sqrt(spread)))
-        m = _own_fixed_point(m.pooled("toggle_rate", w), "clock_rate", "toggle_rate", rate, resim, iterations)
+        m = _own_fixed_point(m.pooled("toggle_rate", w), "clock_rate", "toggle_rate", rate, resim, iterations)[0]
         if resim is not None and m.frame_lead == "random" and noise is None:
             m = self._lead_with_own_clocks(m, meas, rate, resim, iterations)
         return m.with_individual({"clock_rate": w}, clock_rate=m.swarm.clock_rate * partial_pool(meas["toggle_rate"], keep_spread=True)[0] / rate)
@@ -1209,7 +1218,7 @@ class ClockDrift(Effect):
         if not abs(np.log(timing / data)) < np.log(random / data):
             return m
         a = m.with_traits(frame_lead="aligned", clock_trial_sd=np.full(n, np.sqrt(max(data - timing, 0.0))))
-        return _own_fixed_point(a, "clock_rate", "toggle_rate", rate, resim, iterations)
+        return _own_fixed_point(a, "clock_rate", "toggle_rate", rate, resim, iterations)[0]
 
 
 #: What :func:`fit_base` estimates from the data, per kind (population levels only).

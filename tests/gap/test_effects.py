@@ -486,25 +486,57 @@ def test_the_robots_own_fixed_point_steps_by_the_summary_s_elasticity():
     start = target / np.sqrt(1 + c**2)
     m0 = model.with_traits(speed_factor=start)
     resim = _chord_world(c, n)
-    fitted = E._own_fixed_point(m0, "speed_factor", "speed", target, resim, 2, elastic=True).swarm.speed_factor
+    model2, e = E._own_fixed_point(m0, "speed_factor", "speed", target, resim, 2, elastic=True)
+    fitted = model2.swarm.speed_factor
     # the fixed point is where the fit over robots (a quadratic in f) meets the target, so it
     # misses the inverse by the quadratic's own misfit to sqrt(f^2 + c^2) over the slope
     misfit = np.polyval(np.polyfit(truth, target, 2), truth) - target
     bound = 2 * np.max(np.abs(misfit)) / np.min(truth / target)
     assert bound < 0.01 * truth.std()  # (the misfit is small: 0.3 % of the spread)
     assert np.max(np.abs(fitted - truth)) < bound, (np.max(np.abs(fitted - truth)), bound)
+    # the elasticity the last step took, against the hand derivative f^2 / (f^2 + c^2) at the
+    # traits it was read at (0.47-0.68 over these robots), to the quadratic fit's accuracy
+    before = E._own_fixed_point(m0, "speed_factor", "speed", target, resim, 1, elastic=True)[0].swarm.speed_factor
+    np.testing.assert_allclose(e, before**2 / (before**2 + c**2), atol=0.01)
     # the ratio steps leave 0.16 of the error (0.4 per step, as the elasticity 0.6 says)
-    ratio = E._own_fixed_point(m0, "speed_factor", "speed", target, resim, 2).swarm.speed_factor
+    ratio, ones = E._own_fixed_point(m0, "speed_factor", "speed", target, resim, 2)
+    ratio = ratio.swarm.speed_factor
+    assert np.all(ones == 1.0)
     left = np.polyfit(start - truth, ratio - truth, 1)[0]
     assert abs(left - 0.4**2) < 0.02, left
     # with Monte Carlo error in the simulated summaries (sd 0.02 per robot-trial, 60 a robot),
     # the fit over robots still reads the elasticity: factors within 4 sd of the error a
     # robot's own mean would carry (0.02 / sqrt(60) / 0.6 in f, before the smoothing)
-    noisy = E._own_fixed_point(m0, "speed_factor", "speed", target, _chord_world(c, n, noise=0.02, seed=1), 2, elastic=True)
+    noisy = E._own_fixed_point(m0, "speed_factor", "speed", target, _chord_world(c, n, noise=0.02, seed=1), 2, elastic=True)[0]
     assert np.max(np.abs(noisy.swarm.speed_factor - truth)) < 4 * 0.02 / np.sqrt(60) / 0.6
     # robots alike: the elasticity is not measured, so the step is the ratio (no 4x amplification
     # of the population's mismatch by a clipped elasticity of 0.25)
     alike = model.with_traits(speed_factor=np.full(n, 1.0))
     goal = np.full(n, 1.05 * np.sqrt(1 + c**2))
-    one = E._own_fixed_point(alike, "speed_factor", "speed", goal, resim, 1, elastic=True).swarm.speed_factor
+    one = E._own_fixed_point(alike, "speed_factor", "speed", goal, resim, 1, elastic=True)[0].swarm.speed_factor
     np.testing.assert_allclose(one, 1.05, rtol=1e-12)
+
+
+def test_spread_keeping_speed_factors_go_through_the_elasticity():
+    """The spread-keeping estimate of a robot's speed factor is the factor whose summary is the
+    robot's own, unpooled one. In the chord world (summary sqrt(f^2 + c^2), elasticity 0.6 near
+    f = 1) that is the hand inverse sqrt(y^2 - c^2) of the spread-keeping summary y: 16 robots x 3
+    trials with trial noise that pools them by about a fifth. Scaling the pooled factor by the
+    summaries' plain ratio (as if the elasticity were 1) misses the inverse by (1/0.6 - 1) of that
+    ratio's distance from 1, up to 0.7 % here."""
+    n, K, c = 16, 3, np.sqrt(2 / 3)
+    rng = np.random.default_rng(9)
+    f = 1.0 + 0.12 * rng.standard_normal(n)
+    speed = np.sqrt(f**2 + c**2)[None, :] + 0.05 * rng.standard_normal((K, n))
+    meas = E.Summaries({"speed": speed}, np.arange(K))
+    resim = _chord_world(c, n, trials=K)
+    nominal = E.nominal_model("motion", np.arange(n))
+    fitted = E.LIBRARY["speed_heterogeneity"].fit(nominal, meas, resim(nominal), resim)
+    # each robot's spread-keeping factor over its pooled one, against the hand inverse's ratio at
+    # the spread-keeping and the pooled summaries (the pooled factor's own small miss, the fit's
+    # misfit of 0.1 %, cancels)
+    y, yp = E.partial_pool(speed, keep_spread=True)[0], E.partial_pool(speed)[0]
+    hand = np.sqrt(y**2 - c**2) / np.sqrt(yp**2 - c**2)
+    plain = y / yp
+    assert np.max(np.abs(plain / hand - 1)) > 5e-3  # as if the elasticity were 1: off by this much here
+    np.testing.assert_allclose(fitted.individual["speed_factor"] / fitted.swarm.speed_factor, hand, rtol=1e-3)
