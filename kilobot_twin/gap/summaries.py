@@ -810,9 +810,8 @@ def _toggle_rates(led, out):  # pragma: no cover - compiled
         out[r] = phases / (beg[sharp[ns - 1]] - beg[sharp[0]])  # 4.
 
 
-
 #: How many standard errors a lens's radial distortion must stand from 0 for :func:`lens_distortion`
-#: to report it (the twin is then observed through it; a world without one reads 0 +- 1 se).
+#: to report it (the data's positions are then undistorted by it; a world without one reads 0 +- 1 se).
 LENS_Z = 5.0
 
 
@@ -847,8 +846,8 @@ def lens_distortion(x, y, dt_s: float, lag_s: float = 4.0, z: float = LENS_Z) ->
         if more is None:
             break
         dk, dc, se = more
-        # the residual lens composes with the first to first order: k adds, and the centre is
-        # the k-weighted mean of the two (a residual k about c' is k (q - (c' - c))...)
+        # the residual lens composes with the first to first order: the k's add, and the centre
+        # is their k-weighted mean (both stretch by k |p - c|^2, whose terms linear in p add)
         c = tuple((k * np.asarray(c) + dk * np.asarray(dc)) / (k + dk)) if abs(k + dk) > 0 else c
         k += dk
     return {"k1_per_m2": float(k), "centre_m": (float(c[0]), float(c[1])), "k1_se": float(se), "z": float(abs(k) / se)}
@@ -929,18 +928,10 @@ def _within(a, track, use, n_tracks):
     return out
 
 
-def lens_distort(x, y, lens: dict | None):
-    """Positions (any shape) as a camera with ``lens`` (:func:`lens_distortion`) reports them."""
-    if lens is None:
-        return x, y
-    (cx, cy), k = lens["centre_m"], lens["k1_per_m2"]
-    qx, qy = x - cx, y - cy
-    f = 1 + k * (qx * qx + qy * qy)
-    return cx + qx * f, cy + qy * f
-
-
 def lens_undistort(x, y, lens: dict | None, iterations: int = 8):
-    """The inverse of :func:`lens_distort` (fixed-point iteration; |k| r^2 is a few per cent)."""
+    """Positions on the floor from positions (any shape) a camera with ``lens``
+    (:func:`lens_distortion`) reported, inverting c + q (1 + k |q|^2) by fixed-point iteration
+    (|k| |q|^2 is a few per cent)."""
     if lens is None:
         return x, y
     (cx, cy), k = lens["centre_m"], lens["k1_per_m2"]

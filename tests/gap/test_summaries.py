@@ -548,13 +548,16 @@ def test_a_lens_is_read_off_how_chords_lengthen_across_the_field():
         assert all(summaries.lens_distortion(*_lens_world(rng, 0.0, c, e), 0.1) is None for _ in range(15))
 
 
-def test_lens_distort_and_undistort_by_hand():
-    """(0.5, 0) about the origin at k1 = 0.04 / m^2 is seen at 0.5 (1 + 0.04 x 0.25) = 0.505;
-    undistorting returns it; no lens leaves positions as they are."""
+def test_lens_undistort_by_hand():
+    """(0.5, 0) about the origin at k1 = 0.04 / m^2 is seen at 0.5 (1 + 0.04 x 0.25) = 0.505, and
+    undistorting returns it; points seen through a lens about an off-origin centre (distorted by
+    hand here) come back; no lens leaves positions as they are."""
     lens = {"k1_per_m2": 0.04, "centre_m": (0.0, 0.0)}
-    x, y = summaries.lens_distort(np.array([0.5]), np.array([0.0]), lens)
-    assert x[0] == pytest.approx(0.505) and y[0] == 0.0
-    shifted = {"k1_per_m2": -0.06, "centre_m": (0.1, -0.2)}
+    x, y = summaries.lens_undistort(np.array([0.505]), np.array([0.0]), lens)
+    assert x[0] == pytest.approx(0.5, abs=1e-12) and y[0] == 0.0
+    k, (cx, cy) = -0.06, (0.1, -0.2)
     px, py = np.array([0.4, -0.3, 0.1]), np.array([0.2, 0.5, -0.2])
-    np.testing.assert_allclose(summaries.lens_undistort(*summaries.lens_distort(px, py, shifted), shifted), (px, py), atol=1e-12)
-    assert summaries.lens_distort(px, py, None) == (px, py)
+    f = 1 + k * ((px - cx) ** 2 + (py - cy) ** 2)
+    seen = (cx + (px - cx) * f, cy + (py - cy) * f)
+    np.testing.assert_allclose(summaries.lens_undistort(*seen, {"k1_per_m2": k, "centre_m": (cx, cy)}), (px, py), atol=1e-12)
+    assert summaries.lens_undistort(px, py, None) == (px, py)
