@@ -266,10 +266,11 @@ def camera_positions(rng, nz, st, th, x, y, tt):
     return ox, oy, seen & ~gilbert_elliott(rng, np.broadcast_to(tt, (n, len(tt))), nz)
 
 
-def motion(rng, fx, st, shape, nz, hidden, s, program):
+def motion(rng, fx, st, shape, nz, hidden, s, program, pop_rng=None):
     n, K, hz = shape["robots"], shape["trials"], shape["frame_hz"]
     v_cmd = program["commanded_speed_m_s"]
-    v_pop, w_pop = v_cmd * rng.uniform(0.85, 1.15), rng.uniform(-0.003, 0.003)
+    pr = rng if pop_rng is None else pop_rng  # the population's draws (the seed's in every realisation)
+    v_pop, w_pop = v_cmd * pr.uniform(0.85, 1.15), pr.uniform(-0.003, 0.003)
     on = {e: float(e in hidden) * s for e in EFFECTS["motion"]}
     w_i = w_pop + on["heading_bias"] * 0.008 * fx["bias"]
     v_i = v_pop * np.clip(1 + on["speed_heterogeneity"] * 0.12 * fx["speed"], 0.3, 2.0)
@@ -313,9 +314,10 @@ def _rows(k, shape, keep, t, **values):
 
 # --- light sweep ------------------------------------------------------------------------------------
 
-def light_sweep(rng, fx, st, shape, nz, hidden, s, program):
+def light_sweep(rng, fx, st, shape, nz, hidden, s, program, pop_rng=None):
     n, K, hz = shape["robots"], shape["trials"], shape["frame_hz"]
-    g_pop, o_pop = 2.2 * np.exp(rng.uniform(np.log(0.6), np.log(1.5))), rng.uniform(0.0, 15.0)
+    pr = rng if pop_rng is None else pop_rng
+    g_pop, o_pop = 2.2 * np.exp(pr.uniform(np.log(0.6), np.log(1.5))), pr.uniform(0.0, 15.0)
     on = s * float("sensor_gain" in hidden)
     g, o = g_pop * np.exp(on * 0.25 * fx["gain"]), o_pop + on * 6.0 * fx["offset"]
     cols = []
@@ -348,10 +350,10 @@ def _projected(t, lead):
 
 # --- blink ------------------------------------------------------------------------------------------
 
-def blink(rng, fx, st, shape, nz, hidden, s, program):
+def blink(rng, fx, st, shape, nz, hidden, s, program, pop_rng=None):
     n, K, hz = shape["robots"], shape["trials"], shape["frame_hz"]
     tick_hz, half = program["tick_hz"], program["half_period_ticks"]
-    f_pop = tick_hz * rng.uniform(0.97, 1.03)
+    f_pop = tick_hz * (rng if pop_rng is None else pop_rng).uniform(0.97, 1.03)
     f_i = f_pop * (1 + s * float("clock_drift" in hidden) * 0.015 * fx["clock"])
     cols, G = [], 0.1  # clock-rate grid step (s)
     for k in range(K):
@@ -423,11 +425,21 @@ def _check(kind, hidden, seed, nuisance_scale, effect_scale, nuisance):
 
 
 def generate(kind, hidden, out, seed=0, nuisance_scale=None, effect_scale=1.0, fixed_shape=False, program=None,
-             nuisance=None) -> dict:
-    """Write one dataset to ``out`` (meta.yaml, observations.csv, truth.json) and return the truth."""
+             nuisance=None, realisation=0) -> dict:
+    """Write one dataset to ``out`` (meta.yaml, observations.csv, truth.json) and return the truth.
+    ``realisation`` > 0 draws the noise of the robots, the camera and the serial log afresh, with
+    the world (shape, nuisance levels, robots, camera geometry) as ``seed`` draws it: a second
+    dataset of the same swarm. At 0, datasets of the same seed share their noise whatever effects
+    are hidden."""
     hidden = _check(kind, hidden, seed, nuisance_scale, effect_scale, nuisance)
+    if isinstance(realisation, bool) or not isinstance(realisation, (int, np.integer)) or realisation < 0:
+        raise ValueError(f"--realisation: must be an integer >= 0, got {realisation!r}")
     r_shape, r_nz, r_prog, r_world, r_fx, r_setup, r_write = (
         np.random.default_rng(c) for c in np.random.SeedSequence([int(seed), 0x57E55]).spawn(7))
+    pop = None
+    if realisation:  # the population's draws come first in the seed's own noise stream
+        pop, (r_world, r_write) = r_world, (np.random.default_rng(c) for c in
+                                            np.random.SeedSequence([int(seed), 0x57E55, int(realisation)]).spawn(2))
     program = draw_program(r_prog if program == "random" else None) | (program if isinstance(program, dict) else {})
     shape = draw_shape(r_shape, kind, fixed_shape)
     nz = draw_nuisance(r_nz, nuisance_scale) | {k: min(float(v), CAPS.get(k, 1e300)) for k, v in (nuisance or {}).items()}
@@ -436,13 +448,14 @@ def generate(kind, hidden, out, seed=0, nuisance_scale=None, effect_scale=1.0, f
     fx["downhill"] = r_fx.uniform(-np.pi, np.pi)
     setup = world_setup(r_setup, nz, n)
     fn = {"motion": motion, "light_sweep": light_sweep, "blink": blink}[kind]
-    blocks, order, meta, per_robot, extra = fn(r_world, fx, setup, shape, nz, hidden, effect_scale, program)
+    blocks, order, meta, per_robot, extra = fn(r_world, fx, setup, shape, nz, hidden, effect_scale, program, pop_rng=pop)
     meta = {"kind": kind, "robots": list(range(n)), "trials": shape["trials"], "dt_s": 1.0 / shape["frame_hz"],
             "duration_s": float(max(shape["lengths_s"])), **meta}
     out = Path(out)
     write_dataset(out, meta, order, blocks, r_write)
     keep = ("axle_m", "slip_p", "slip_c", "slip_noise_realised", "k1", "cam_err") if kind == "motion" else ("cam_err",)
-    truth = {"generator": "stress_world", "kind": kind, "hidden": hidden, "seed": int(seed), "effect_scale": effect_scale,
+    truth = {"generator": "stress_world", "kind": kind, "hidden": hidden, "seed": int(seed), "realisation": int(realisation),
+             "effect_scale": effect_scale,
              "nuisance": nz, "nuisance_scale": nuisance_scale, "shape": shape, "program": program,
              "setup": {k: setup[k] for k in keep}, **extra,
              "robots": {str(i): {k: float(np.broadcast_to(v, (n,))[i]) for k, v in per_robot.items()} for i in range(n)}}
@@ -467,10 +480,12 @@ def main(argv=None):
     ap.add_argument("--effect-scale", type=float, default=1.0)
     ap.add_argument("--fixed-shape", action="store_true", help="12 robots x 4 trials at 10 Hz (blink 16 at 30 Hz)")
     ap.add_argument("--random-program", action="store_true", help="draw the commanded speed and the LED program")
+    ap.add_argument("--realisation", type=int, default=0,
+                    help="> 0: the same world (robots, nuisances, shape) with its noise drawn afresh")
     a = ap.parse_args(argv)
     try:
         truth = generate(a.kind, a.hidden, a.out, a.seed, a.nuisance_scale, a.effect_scale, a.fixed_shape,
-                         "random" if a.random_program else None)
+                         "random" if a.random_program else None, realisation=a.realisation)
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -51,6 +51,25 @@ def test_bad_effect_is_one_line_and_creates_nothing(tmp_path, capsys):
     assert len(err) == 1 and err[0].startswith("error: --hidden") and not (tmp_path / "x").exists()
 
 
+def test_a_second_realisation_is_the_same_world_with_fresh_noise(tmp_path):
+    """``realisation``: the same robots, shape, nuisances and camera, other noise (what
+    ``eval_gap.py --at-mde --fresh-noise`` sets an effect in); 0 is the seed's own dataset."""
+    a = sw.generate("motion", "heading_bias", tmp_path / "a", seed=5, program="random")
+    a0 = sw.generate("motion", "heading_bias", tmp_path / "a0", seed=5, program="random", realisation=0)
+    b = sw.generate("motion", "heading_bias", tmp_path / "b", seed=5, program="random", realisation=1)
+    text = lambda d: (tmp_path / d / "observations.csv").read_bytes()
+    assert text("a0") == text("a") and text("b") != text("a")
+    for key in ("shape", "nuisance", "program", "setup", "robots"):
+        assert a[key] == b[key], key
+    # the noise is fresh: each robot's mean turn rate over its trials scatters about the same true
+    # rate in both, by independent errors (the per-trial rates' spread about their truth)
+    ta, tb = (np.array(t["trial_turn_rates_rad_s"]) for t in (a, b))
+    assert ta.shape == tb.shape and not np.allclose(ta, tb)
+    with pytest.raises(ValueError, match="--realisation"):
+        sw.generate("motion", "", tmp_path / "c", seed=5, realisation=-1)
+    assert not (tmp_path / "c").exists()
+
+
 def test_toggle_rates_through_misread_colours_and_burst_losses(tmp_path):
     """Its camera misreads 1 % of frames (each one two spurious colour changes) and loses frames in
     bursts of 1 s a tenth of the time; clocks neither jitter nor wander and the camera's clock is
