@@ -292,7 +292,8 @@ def motion(rng, fx, st, shape, nz, hidden, s, program, pop_rng=None):
     kbar2 = np.mean([(w_i + dw * k) ** 2 for k in range(K)], axis=0) + nz["turn_trial_sd"] ** 2
     truth = {"heading_bias": -w_i * AXLE_M / v_i, "speed_factor": v_i / v_cmd, "bias_drift": -dw * AXLE_M / v_i,
              "sigma_omega": np.sqrt(sig ** 2 + kbar2 * st["slip_noise_realised"] ** 2), "sigma_omega_drawn": sig,
-             "turn_rate_rad_s": w_i, "speed_m_s": v_i, "marker_offset_m": st["marker_r"]}
+             "turn_rate_rad_s": w_i, "speed_m_s": v_i, "marker_offset_m": st["marker_r"],
+             "marker_left_m": st["marker_r"] * np.sin(st["marker_phi"])}  # tracked speed v - omega x this
     meta = {"behavior": "straight", "nominal_speed_m_s": float(v_cmd)}
     extra = {"population": {"speed_m_s": v_pop, "turn_rate_rad_s": w_pop}, "trial_turn_rates_rad_s": trial_w,
              "floor_tilt": {"amplitude": tilt[0], "downhill_rad": tilt[1]} if tilt else None}

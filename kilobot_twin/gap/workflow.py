@@ -1076,12 +1076,37 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
                           "expected_r": final.expected_r[k]}
                       for k, v in final.individual.items()},
         "minimum_detectable": mde,
+        "tracked_point": tracked_point_offset(meas, final) if kind == "motion" and "speed_heterogeneity" in names else None,
         "steps": steps,
         # the round that named nothing while signals were flagged: its scores and why its best was not named
         "not_named": not_named,
         "disagreements": disagreements, "seconds": time.perf_counter() - t0,
     }
     return {"section": section, "model": final, "residuals": _residuals(meas, pred_cache[()], pred_cache[names], comps)}
+
+
+def tracked_point_offset(meas, model: E.TwinModel) -> dict | None:
+    """How far to the side of its rotation centre each robot's tracked point would have to sit to
+    make the named speed spread alone. A point r_perp to the side of the centre of a robot
+    turning at omega moves at v - omega r_perp, so robots that turn at different rates, tracked
+    at points scattered about their centres, differ in tracked speed by sd over robots
+    omega_i r_i / v = rms(omega) rms(r_perp) / v, however alike their motors: the summaries cannot
+    tell the two apart (the third world's 10-12 mm markers on robots 0.0086 rad/s apart read
+    as a spread of 0.4-0.5 % of the speed). ``offset_m``: that rms(r_perp), from the individual
+    speed factors' relative spread, the data's mean speed and the rms of the robots' mean turn
+    rates (the population's included)."""
+    f = model.individual.get("speed_factor")
+    f = np.asarray(model.swarm.values["speed_factor"] if f is None else f, dtype=float)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a robot seen in no trial
+        w = np.nanmean(np.asarray(meas["turn_rate"], dtype=float), axis=0)
+        v = float(np.nanmean(meas["speed"]))
+    w = w[np.isfinite(w)]
+    spread = float(np.std(f, ddof=1) / np.mean(f)) if len(f) > 1 else 0.0
+    rms = float(np.sqrt(np.mean(w**2))) if len(w) else 0.0
+    if not (rms > 0 and np.isfinite(v) and v > 0):
+        return None
+    return {"speed_spread": spread, "turn_rate_rms_rad_s": rms, "speed_m_s": v, "offset_m": spread * v / rms}
 
 
 #: effect -> (summary whose between-robot F statistic detects it, how its size is expressed)

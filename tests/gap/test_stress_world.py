@@ -70,6 +70,37 @@ def test_a_second_realisation_is_the_same_world_with_fresh_noise(tmp_path):
     assert not (tmp_path / "c").exists()
 
 
+def test_a_tracked_point_off_the_rotation_centre_reads_as_a_speed_spread(tmp_path):
+    """Robots alike in speed but not in turn rate, each tracked at a marker r_left to the side of
+    its rotation centre (the third world's camera, every other nuisance off): the marker moves at
+    v - omega r_left, so the robots' mean speeds differ by -omega_i r_left_i / v (the truth's,
+    from the world's own geometry), and :func:`tracked_point_offset` reads back from the measured
+    summaries the marker offset that makes that spread: sd_i(omega_i r_left_i) / rms(omega)."""
+    from types import SimpleNamespace
+
+    from kilobot_twin.gap.workflow import tracked_point_offset
+
+    # seed 7: the robots' mean turn rate (-0.0022 rad/s) is a good part of their rms, which the
+    # offset's denominator must hold as well as their spread
+    truth = sw.generate("motion", "heading_bias", tmp_path, seed=7, nuisance_scale=0.0, fixed_shape=True,
+                        nuisance={"marker_offset_m": 0.015})
+    _, s = measured_summaries(measured.load(tmp_path))
+    n = truth["shape"]["robots"]
+    col = lambda k: np.array([truth["robots"][str(i)][k] for i in range(n)])
+    w, v, r = col("turn_rate_rad_s"), col("speed_m_s"), col("marker_left_m")
+    assert np.ptp(v) == 0  # no speed spread in the world
+    rel = np.nanmean(s["speed"], axis=0) / np.nanmean(s["speed"]) - 1
+    expected = -w * r / v
+    assert np.std(expected) > 0.003  # a spread the test can see (0.3 % of the speed or more)
+    slope, _ = np.polyfit(expected, rel, 1)
+    assert np.corrcoef(expected, rel)[0, 1] > 0.99 and abs(slope - 1) < 0.02, (np.corrcoef(expected, rel)[0, 1], slope)
+    tp = tracked_point_offset(s, SimpleNamespace(individual={"speed_factor": 1 + rel}, swarm=None))
+    want = np.std(w * r, ddof=1) / np.sqrt(np.mean(w**2))
+
+    assert abs(tp["offset_m"] / want - 1) < 0.02, (tp, want)
+    assert abs(tp["turn_rate_rms_rad_s"] / np.sqrt(np.mean(w**2)) - 1) < 0.02
+
+
 def test_toggle_rates_through_misread_colours_and_burst_losses(tmp_path):
     """Its camera misreads 1 % of frames (each one two spurious colour changes) and loses frames in
     bursts of 1 s a tenth of the time; clocks neither jitter nor wander and the camera's clock is
