@@ -496,7 +496,7 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             var_i, pooled = _replicate_spread(x, centre)
             floor = float(_rel_floor(x))
             h_track, h_level = E.leverage(kind, names, c, train, k, N, fitter.fit_base, fitter.gs.library, model,
-                                         fitter.gs.m_fold)
+                                         fitter.gs.m_fold, seen=np.isfinite(fitter.meas[c]))
             if scales:
                 h_track = E.spread_leverage(h_track, b)
             # The predicted mean is itself a mean of the replicates kept, so it is off by their

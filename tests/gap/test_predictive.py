@@ -656,3 +656,45 @@ def test_a_second_reading_of_each_robot_s_intensity_sharpens_the_estimates_and_k
     no = E.pool_intensities(d.mean(1), n, a=4 * b * np.exp(mu) ** 2, b=b,
                             second=(np.full(u.shape, np.nan), np.zeros(u.shape), c, k))
     assert np.allclose(no[0], one[0]) and np.allclose(no[2], one[2])
+
+
+def test_robots_missing_training_trials_are_predicted_with_their_own_leverage():
+    """Random lines per robot (levels ~ N(0, 1), slopes ~ N(0, 0.5^2) per trial, trials ~ N(line,
+    0.5^2)), drawn here; 8 of 30 robots are seen in trials 0 and 2 only. Trial 0 is predicted from
+    trials 1-3 as ``BiasDrift.fit`` does (levels and slopes pooled, with the known trial
+    variance): a robot seen in trial 2 alone takes its own level and the population's slope. Its
+    prediction errs by s^2 (1 + w_i) + tau_d^2 (0 - 2)^2, and its held-out z^2 must average 1 as
+    a complete robot's does: under the model each z^2 is chi^2 with 1 dof, so the mean over n has
+    sd sqrt(2 / n); 4 sd allowed, plus 0.05 for weights estimated from 30 robots. Their leverage
+    taken as a complete robot's (w_d,i = 0 there: no slope term at all) leaves z^2 at 4.5."""
+    rng = np.random.default_rng(21)
+    N, K, s, tau_m, tau_d, R = 30, 4, 0.5, 1.0, 0.5, 150
+    seen = np.ones((K, N), bool)
+    seen[[1, 3], :8] = False
+    train, k = [1, 2, 3], 0
+    z2_own, z2_complete, z2_without = [], [], []
+    for _ in range(R):
+        level, slope = rng.normal(0, tau_m, N), rng.normal(0, tau_d, N)
+        x = level + slope * (np.arange(K)[:, None] - 1.5) + rng.normal(0, s, (K, N))
+        x = np.where(seen, x, np.nan)
+        b = x[train]
+        t = np.array(train, float)[:, None] * np.ones((1, N))
+        ok = np.isfinite(b)
+        n = ok.sum(0)
+        kbar = np.where(ok, t, 0).sum(0) / n
+        sxx = np.where(ok, (t - kbar) ** 2, 0).sum(0)
+        d = np.where(sxx > 0, np.where(ok, (t - kbar) * np.nan_to_num(b), 0).sum(0) / np.maximum(sxx, 1e-300), 0.0)
+        lev, w = E.partial_pool(b, s2=s**2)
+        slp, w_d = E.shrink(d, np.where(sxx > 0, s**2 / np.maximum(sxx, 1e-300), np.inf))
+        pred = lev + slp * (k - kbar)
+        m = E.nominal_model("motion", list(range(N))).pooled("turn_rate", w, w_d)
+        h, _ = E.leverage("motion", ("bias_drift",), "turn_rate", train, k, N, model=m, seen=seen)
+        h_old, _ = E.leverage("motion", ("bias_drift",), "turn_rate", train, k, N, model=m)
+        z2 = (x[k] - pred) ** 2 / (s**2 * (1 + h))
+        z2_own.append(z2[:8])
+        z2_complete.append(z2[8:])
+        z2_without.append(((x[k] - pred) ** 2 / (s**2 * (1 + h_old)))[:8])
+    z2_own, z2_complete, z2_without = (np.concatenate(a) for a in (z2_own, z2_complete, z2_without))
+    assert abs(z2_own.mean() - 1) < 4 * np.sqrt(2 / len(z2_own)) + 0.05, z2_own.mean()
+    assert abs(z2_complete.mean() - 1) < 4 * np.sqrt(2 / len(z2_complete)) + 0.05, z2_complete.mean()
+    assert z2_without.mean() > 2.5, z2_without.mean()
