@@ -514,7 +514,8 @@ def main(argv=None):
     tag += f"_tau{a.heading_noise_tau:g}" if a.heading_noise_tau is not None else ""
     jobs = [{"kind": k, "hidden": h, "seed": a.first_seed + s, "out": str(out), "generator": a.generator,
              "nuisance_scale": a.nuisance_scale, "effect_scale": a.effect_scale, "fixed_shape": a.fixed_shape,
-             "random_nuisance": a.random_nuisance, "at_mde": a.at_mde, "random_program": a.random_program, "fresh_noise": a.fresh_noise,
+             "random_nuisance": a.random_nuisance, "at_mde": a.at_mde, "random_program": a.random_program,
+             "fresh_noise": a.fresh_noise,
              "nuisance_override": None if a.heading_noise_tau is None else {"heading_noise_tau_s": a.heading_noise_tau},
              "name": f"{a.generator}_{tag}_{k}_{h.replace(',', '+') or 'none'}_{a.first_seed + s}"}
             for s in range(a.seeds) for k, h in cases]  # seed-major: a run cut short has every case

@@ -437,10 +437,11 @@ def generate(kind, hidden, out, seed=0, nuisance_scale=None, effect_scale=1.0, f
         raise ValueError(f"--realisation: must be an integer >= 0, got {realisation!r}")
     r_shape, r_nz, r_prog, r_world, r_fx, r_setup, r_write = (
         np.random.default_rng(c) for c in np.random.SeedSequence([int(seed), 0x57E55]).spawn(7))
-    pop = None
-    if realisation:  # the population's draws come first in the seed's own noise stream
-        pop, (r_world, r_write) = r_world, (np.random.default_rng(c) for c in
-                                            np.random.SeedSequence([int(seed), 0x57E55, int(realisation)]).spawn(2))
+    pop = None  # the population's draws: from the noise stream, the seed's own in every realisation
+    if realisation:
+        pop = r_world
+        r_world, r_write = (np.random.default_rng(c)
+                            for c in np.random.SeedSequence([int(seed), 0x57E55, int(realisation)]).spawn(2))
     program = draw_program(r_prog if program == "random" else None) | (program if isinstance(program, dict) else {})
     shape = draw_shape(r_shape, kind, fixed_shape)
     nz = draw_nuisance(r_nz, nuisance_scale) | {k: min(float(v), CAPS.get(k, 1e300)) for k, v in (nuisance or {}).items()}
@@ -449,7 +450,8 @@ def generate(kind, hidden, out, seed=0, nuisance_scale=None, effect_scale=1.0, f
     fx["downhill"] = r_fx.uniform(-np.pi, np.pi)
     setup = world_setup(r_setup, nz, n)
     fn = {"motion": motion, "light_sweep": light_sweep, "blink": blink}[kind]
-    blocks, order, meta, per_robot, extra = fn(r_world, fx, setup, shape, nz, hidden, effect_scale, program, pop_rng=pop)
+    blocks, order, meta, per_robot, extra = fn(r_world, fx, setup, shape, nz, hidden, effect_scale, program,
+                                               pop_rng=pop)
     meta = {"kind": kind, "robots": list(range(n)), "trials": shape["trials"], "dt_s": 1.0 / shape["frame_hz"],
             "duration_s": float(max(shape["lengths_s"])), **meta}
     out = Path(out)

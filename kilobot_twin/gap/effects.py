@@ -1286,7 +1286,11 @@ def _own_trials_leverage(how: str, h, t, k: int, seen, model: TwinModel | None, 
     if np.all(n_i == len(t)):
         return h
     N = own.shape[1]
-    w = np.broadcast_to(model.pooling.get(component, 1.0) if model is not None else 1.0, (N,)).astype(float)
+
+    def weights(pooling):  # per robot, 1 (a free estimate) where the model has none
+        return np.broadcast_to(pooling.get(component, 1.0), (N,)).astype(float)
+
+    w = weights(model.pooling if model is not None else {})
 
     def tau2(wt, size):  # the robots' spread in units of one trial's variance, from w = tau2 size / (tau2 size + 1)
         ok = (wt > 0) & (wt < 1) & (size > 0)
@@ -1301,7 +1305,7 @@ def _own_trials_leverage(how: str, h, t, k: int, seen, model: TwinModel | None, 
             tt = np.broadcast_to(t[:, None], own.shape)
             kbar = np.where(n_i > 0, np.where(own, tt, 0).sum(0) / np.maximum(n_i, 1), 0.0)
             sxx = np.where(own, (tt - kbar) ** 2, 0).sum(0)
-            w_d = np.broadcast_to(model.slope_pooling.get(component, 1.0) if model is not None else 1.0, (N,)).astype(float)
+            w_d = weights(model.slope_pooling if model is not None else {})
             b = tau2(w_d, sxx)
             h_i = h_i + np.where(sxx > 0, w_d * (k - kbar) ** 2 / np.maximum(sxx, 1e-300),
                                  (b if np.isfinite(b) else 1.0) * (k - kbar) ** 2)

@@ -1091,8 +1091,8 @@ def tracked_point_offset(meas, model: E.TwinModel) -> dict | None:
     turning at omega moves at v - omega r_perp, so robots that turn at different rates, tracked
     at points scattered about their centres, differ in tracked speed by sd over robots
     omega_i r_i / v = rms(omega) rms(r_perp) / v, however alike their motors: the summaries cannot
-    tell the two apart (the third world's 10-12 mm markers on robots 0.0086 rad/s apart read
-    as a spread of 0.4-0.5 % of the speed). ``offset_m``: that rms(r_perp), from the individual
+    tell the two apart (the third world's markers, up to 3.6-12 mm off the centre, on robots
+    whose turn rates differ by 0.0086 rad/s or drift, read as a spread of 0.4-0.5 % of the speed). ``offset_m``: that rms(r_perp), from the individual
     speed factors' relative spread, the data's mean speed and the rms of the robots' mean turn
     rates (the population's included)."""
     f = model.individual.get("speed_factor")
@@ -1594,7 +1594,8 @@ def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
                 **({"tracking_correlated_m": float(cond.tracking_correlated_m), "tracking_tau_s": float(cond.tracking_tau_s)}
                    if cond.tracking_correlated_m > 0 else {}),
                 **({"pixel_m": [float(g[0]) for g in cond.lattice]} if cond.lattice is not None else {}),
-                **({"lens_k1_per_m2": cond.lens["k1_per_m2"], "lens_centre_m": list(cond.lens["centre_m"])} if cond.lens is not None else {})}
+                **({"lens_k1_per_m2": cond.lens["k1_per_m2"], "lens_centre_m": list(cond.lens["centre_m"])}
+                   if cond.lens is not None else {})}
     if base.kind == "light_sweep":
         return {"sensor_noise_counts": float(sw.sensor_noise.mean()),
                 "sensor_offset_trial_sd_counts": float(sw.sensor_offset_trial_sd.mean()),
