@@ -314,6 +314,27 @@ def test_a_wild_simulated_replicate_does_not_set_the_predictive_spread():
     assert np.nanstd(kept[:, 3], ddof=1) == pytest.approx(np.std(np.delete(x[:, 3], 7), ddof=1))
 
 
+def test_replicates_of_a_counted_rate_that_tie_are_not_wild():
+    """Rates counted between frame times, as a blink's toggle rate is: 70 toggles at 0.7 Hz, the
+    first and last seen at the next 0.2 s frame, the clock jittering by 3e-4 per trial. The
+    span takes two or three values, one of them in at least half the replicates of every robot,
+    so the median absolute deviation is 0; no replicate lies more than two frames (0.6 %) from
+    the rest, and none is wild. One replaced by 100 (a failure) is the only one dropped."""
+    from kilobot_twin.gap.workflow import _without_wild_replicates
+
+    rng = np.random.default_rng(3)
+    n, f, dt = 70, 0.7, 0.2
+    t0 = rng.uniform(0.0, 1.0 / f, (30, 12))
+    t1 = t0 + n / f * (1.0 + 3e-4 * rng.standard_normal((30, 12)))
+    x = n / (np.ceil(t1 / dt) * dt - np.ceil(t0 / dt) * dt)
+    tied = np.isclose(x, np.median(x, axis=0), rtol=1e-12, atol=0.0).mean(axis=0)
+    assert (tied >= 0.5).all() and (np.ptp(x, axis=0) > 0).all()
+    assert np.isfinite(_without_wild_replicates(x)).all()
+    x[7, 3] = 100.0
+    kept = _without_wild_replicates(x)
+    assert np.isnan(kept[7, 3]) and np.isfinite(kept).sum() == x.size - 1
+
+
 def test_replicate_spread_is_the_common_variance_and_one_noisy_robot_does_not_widen_the_rest():
     """Replicates drawn here (normal, sd 2 for every robot): the typical spread is the common
     variance 4 (unbiased: 2,000 datasets of 12 robots x 30 replicates; 4 Monte Carlo sds allowed,
