@@ -101,11 +101,12 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
                 lines.append(f"- {eff}: named {named}, detected {detected} ({v['unit']})")
         tp = s.get("tracked_point")
         if tp:
-            lines += ["", f"The speed spread named ({100 * tp['speed_spread']:.2g} % of the speed) is also what robots alike "
-                      f"in speed would show, tracked at points {1000 * tp['offset_m']:.2g} mm (rms) to the side of their "
-                      f"rotation centres: at these turn rates (rms {tp['turn_rate_rms_rad_s']:.2g} rad/s) such a point "
-                      f"moves at v - omega r. The data cannot tell the two apart; where the tracked point may sit that "
-                      f"far off the centre, the spread may be the tracker's."]
+            lines += ["", f"The speed spread named ({100 * tp['speed_spread']:.2g} % of the speed) is also what "
+                      f"robots alike in speed would show, tracked at points {1000 * tp['offset_m']:.2g} mm (rms) "
+                      f"to the side of their rotation centres: at these turn rates (rms "
+                      f"{tp['turn_rate_rms_rad_s']:.2g} rad/s) such a point moves at v - omega r. The data cannot "
+                      f"tell the two apart; where the tracked point may sit that far off the centre, the spread may "
+                      f"be the tracker's."]
         if s.get("estimates"):
             lines += ["", "Per-robot estimates (model.yaml) and how closely they can follow the robots' true values "
                       "from these trials (expected correlation, also about their slope against the truth; "

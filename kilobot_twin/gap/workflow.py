@@ -1090,7 +1090,8 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
                           "expected_r": final.expected_r[k]}
                       for k, v in final.individual.items()},
         "minimum_detectable": mde,
-        "tracked_point": tracked_point_offset(meas, final) if kind == "motion" and "speed_heterogeneity" in names else None,
+        "tracked_point": (tracked_point_offset(meas, final)
+                          if kind == "motion" and "speed_heterogeneity" in names else None),
         "steps": steps,
         # the round that named nothing while signals were flagged: its scores and why its best was not named
         "not_named": not_named,
@@ -1106,9 +1107,9 @@ def tracked_point_offset(meas, model: E.TwinModel) -> dict | None:
     at points scattered about their centres, differ in tracked speed by sd over robots
     omega_i r_i / v = rms(omega) rms(r_perp) / v, however alike their motors: the summaries cannot
     tell the two apart (the third world's markers, up to 3.6-12 mm off the centre, on robots
-    whose turn rates differ by 0.0086 rad/s or drift, read as a spread of 0.4-0.5 % of the speed). ``offset_m``: that rms(r_perp), from the individual
-    speed factors' relative spread, the data's mean speed and the rms of the robots' mean turn
-    rates (the population's included)."""
+    whose turn rates differ by 0.0086 rad/s or drift, read as a spread of 0.4-0.5 % of the
+    speed). ``offset_m``: that rms(r_perp), from the individual speed factors' relative spread,
+    the data's mean speed and the rms of the robots' mean turn rates (the population's included)."""
     f = model.individual.get("speed_factor")
     f = np.asarray(model.swarm.values["speed_factor"] if f is None else f, dtype=float)
     with np.errstate(all="ignore"), warnings.catch_warnings():
