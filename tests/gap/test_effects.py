@@ -540,3 +540,52 @@ def test_spread_keeping_speed_factors_go_through_the_elasticity():
     plain = y / yp
     assert np.max(np.abs(plain / hand - 1)) > 5e-3  # as if the elasticity were 1: off by this much here
     np.testing.assert_allclose(fitted.individual["speed_factor"] / fitted.swarm.speed_factor, hand, rtol=1e-3)
+
+
+def _sweep_stats(gain_var, offset_var, n=6):
+    """Summaries (1, 2, n) whose within-robot variances are exactly these (each robot's two
+    trials +-sqrt(v / 2) about its level: a deviation square sum of v on one degree of freedom)."""
+    def two(v):
+        d = np.sqrt(v / 2.0)
+        return np.stack([np.full(n, 100.0 - d), np.full(n, 100.0 + d)])[None]
+    return {"gain": two(gain_var), "offset": two(offset_var)}
+
+
+@pytest.mark.parametrize("data_gain_var, base_kind", [(0.085, "without noise"), (0.072, "with noise")])
+def test_a_refit_keeps_the_kind_of_sensor_it_is_given(data_gain_var, base_kind):
+    """``fit_sensor_noise(..., like=base)`` refits the levels of the base's kind of sensor, never
+    the other kind. A linear world of statistics written here: a sensor without noise leaves its
+    gains a within-robot variance of 0.070, the floor's dither (1/12 counts^2) 0.080, and reading
+    noise adds 0.1 per counts^2 beyond it; the offsets vary by 0.003 (1 + sigma^2) plus the
+    offset's trial spread s^2. Data at 0.085 sit above the dither: on its own the fit takes the
+    dither and 0.05 counts^2 more (sigma^2 = 1/12 + 0.05), where the data ask for it (by hand from
+    the map), and given a base without noise, no noise and the offsets' spread. Data at 0.072 sit
+    below the dither and near no noise: on its own the fit takes no noise, and given a base with
+    noise, the dither's floor. The offsets' variance of 26 is s^2 = 26 - 0.003 (no noise) or
+    26 - 0.003 (1 + sigma^2) (with it), to the solver's precision. (Independent world 3247: the
+    base came out without noise and the sensor gain's refit with the dither, and a gain at its
+    stated size scored -36 on held-out sweeps where the base's kind gives +33.)"""
+    n = 6
+    floor = E.ADC_ROUNDING_VAR
+
+    def world(m):
+        sigma2, s2 = float(m.swarm.sensor_noise[0]) ** 2, float(m.swarm.sensor_offset_trial_sd[0]) ** 2
+        g = 0.070 if sigma2 == 0 else 0.080 + 0.1 * (sigma2 - floor)
+        return _sweep_stats(g, 0.003 * (1 + sigma2) + s2, n)
+
+    start = E.nominal_model("light_sweep", np.arange(n))
+    meas = {k: v[0] for k, v in _sweep_stats(data_gain_var, 26.0, n).items()}
+    alone = E.fit_sensor_noise(start, meas, world)
+    quiet = start.with_traits(sensor_noise=np.zeros(n), sensor_offset_trial_sd=np.full(n, 5.0))
+    noisy = start.with_traits(sensor_noise=np.full(n, 0.4), sensor_offset_trial_sd=np.full(n, 5.0))
+    kept = E.fit_sensor_noise(start, meas, world, like=quiet if base_kind == "without noise" else noisy)
+    sigma2 = lambda m: float(m.swarm.sensor_noise[0]) ** 2  # noqa: E731
+    s2 = lambda m: float(m.swarm.sensor_offset_trial_sd[0]) ** 2  # noqa: E731
+    if base_kind == "without noise":
+        assert sigma2(alone) == pytest.approx(floor + 0.05, rel=1e-6)  # 0.085 = 0.080 + 0.1 x 0.05
+        assert sigma2(kept) == 0.0
+        assert s2(kept) == pytest.approx(26.0 - 0.003, rel=1e-6)
+    else:
+        assert sigma2(alone) == 0.0
+        assert sigma2(kept) == pytest.approx(floor, rel=1e-9)
+        assert s2(kept) == pytest.approx(26.0 - 0.003 * (1 + floor), rel=1e-6)
