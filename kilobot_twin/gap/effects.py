@@ -42,7 +42,8 @@ class TwinModel:
     #: ``diffusion_within_var0`` (the within-robot variance of the diffusion without heading noise)
     noise_map: dict = field(default_factory=dict)
     #: blink: where a robot's clock stands at a recording's first frame: ``aligned`` (it starts
-    #: then) or ``random`` (anywhere within a frame: a free-running camera); see :func:`fit_base`
+    #: then) or ``random`` (anywhere in its LED cycle: robots started apart from a free-running
+    #: camera); see :func:`fit_base`
     frame_lead: str = "aligned"
     #: motion: the commanded speed the robots' speed factors multiply (a dataset's
     #: ``nominal_speed_m_s``); heading biases are read from turn rates at that speed

@@ -289,6 +289,35 @@ def test_blink_toggle_rate_and_closed_form_leds():
 
 
 
+def test_a_random_lead_puts_a_robot_anywhere_in_its_led_cycle():
+    """With ``frame_lead`` random, the twin's replicates of a trial count toggle rates as robots at
+    uniform points of their LED cycle do, written here without the twin: a square wave of 57
+    ticks a half at 26.5 Hz (10.75 frames at 5 Hz), read every 0.2 s for 117.6 s. There the
+    periods a robot shows span nearly a whole number of frames, and robots placed within one
+    frame of each other all count the same rate (independent world blink 3254, where seven
+    robots lay 7-10 predictive sds off). The twin's rates must take the same values as the
+    uniform phases' with the same frequencies: a chi-square test of the two samples' counts at
+    the 0.1 % level, and more than one value."""
+    from scipy.stats import chi2_contingency
+
+    from kilobot_twin.gap import effects as E
+    from kilobot_twin.gap.model import Conditions, simulate
+
+    n, dt, half, hz, span = 50, 0.2, 57, 26.5, 117.6
+    T = int(round(span / dt)) + 1
+    cond = Conditions("blink", np.arange(n), 1, span, dt, np.ones((1, n, T), bool), half_period_ticks=half, tick_hz=hz)
+    m = E.nominal_model("blink", cond.robot_ids).with_traits(clock_rate=np.ones(n), clock_trial_sd=np.zeros(n),
+                                                             frame_lead="random")
+    twin = simulate(cond, m, 40, seed=3)["toggle_rate"].ravel()
+    u = np.random.default_rng(7).uniform(0.0, 1.0, (2000, 1))  # where in its cycle a robot is at frame 0
+    led = np.floor((u * 2 * half + np.arange(T) * dt * hz) / half) % 2
+    phases = summaries.blink(led, dt)["toggle_rate"].ravel()
+    values = np.unique(np.round(np.concatenate([twin, phases]), 9))
+    counts = [[int(np.sum(np.round(x, 9) == v)) for v in values] for x in (twin, phases)]
+    assert len(values) > 1 and np.all(np.sum(counts, axis=1) == [twin.size, phases.size]), counts
+    assert chi2_contingency(counts)[1] > 1e-3, counts
+
+
 def _square(T=400, first=5, phase=10):
     """LED samples (0/1) toggling every ``phase`` samples from sample ``first``: at dt 0.1 s, 1
     toggle per second exactly."""
