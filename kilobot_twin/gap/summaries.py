@@ -717,6 +717,11 @@ def blink(led, dt_s: float, threads: int = 1) -> dict:
     first toggle), the plain count. Where the median run spans two samples or fewer, a misread is
     not told from a phase: steps 2 and 3 are skipped (each spacing counts 1). Three toggles at
     least, else NaN. Vectorised over all leading axes (one compiled pass per track).
+
+    ``toggle_rate_floor``: the variance that rounding the first and the last toggle to frames
+    gives the rate where the clock's place in its cycle is not known to within a frame, (rate dt /
+    span)^2 / 6 (two uniform roundings of a frame; span: the track's first to last observed
+    sample, a little longer than its first to last toggle).
     """
     led = np.asarray(led, float)
     lead = led.shape[:-1]
@@ -729,7 +734,12 @@ def blink(led, dt_s: float, threads: int = 1) -> dict:
         rates(rows[r0:r1], out[r0:r1])
 
     engine.share(part, R, threads)
-    return {"toggle_rate": (out / dt_s).reshape(lead)}
+    rate = (out / dt_s).reshape(lead)
+    seen = np.isfinite(led)
+    first, last = np.argmax(seen, axis=-1), led.shape[-1] - 1 - np.argmax(seen[..., ::-1], axis=-1)
+    with np.errstate(all="ignore"):
+        floor = (rate / np.maximum(last - first, 1)) ** 2 / 6.0
+    return {"toggle_rate": rate, "toggle_rate_floor": floor}
 
 
 def _toggle_rates(led, out):  # pragma: no cover - compiled
