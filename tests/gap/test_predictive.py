@@ -366,6 +366,28 @@ def test_a_counted_rate_on_two_clusters_of_steps_is_not_wild():
     assert np.isnan(kept[4, 2]) and np.isfinite(kept).sum() == x.size - 1
 
 
+def test_a_random_lead_never_predicts_a_rate_closer_than_the_frames_round_it(tmp_path):
+    """The independent world's blinks with robots started up to 6 s late (a cycle or more) and no
+    clock jitter: the base takes a random lead, and every held-out toggle rate's predictive
+    variance is at least the data's rounding floor (summaries.blink), where the replicates alone
+    fell below it (tracks whose periods span nearly a whole number of frames)."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("indep_world", Path(__file__).parents[2] / "benchmarks" / "indep_world.py")
+    iw = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(iw)
+    iw.generate("blink", "none", tmp_path / "d", seed=21, nuisance={"start_delay_s": 6.0, "clock_trial_sd": 0.0,
+                                                                    "tick_diffusion": 0.0, "time_jitter_s": 0.0})
+    cond, meas = measured_summaries(measured.load(tmp_path / "d"))
+    meas = E.Summaries(meas, np.arange(cond.trials))
+    fitter = _Fitter(cond, meas, E.nominal_model("blink", cond.robot_ids), GapSettings(seed=21), True)
+    assert fitter.fit((), list(range(cond.trials))).frame_lead == "random"
+    sd, floor = _heldout(fitter, (), "blink")["toggle_rate"]["sd"], np.asarray(meas["toggle_rate_floor"])
+    seen = np.isfinite(floor) & np.isfinite(sd)
+    assert seen.sum() >= 0.9 * floor.size and np.all(sd[seen] ** 2 >= floor[seen] * (1 - 1e-12))
+
+
 def test_replicate_spread_is_the_common_variance_and_one_noisy_robot_does_not_widen_the_rest():
     """Replicates drawn here (normal, sd 2 for every robot): the typical spread is the common
     variance 4 (unbiased: 2,000 datasets of 12 robots x 30 replicates; 4 Monte Carlo sds allowed,
