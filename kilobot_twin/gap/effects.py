@@ -562,8 +562,8 @@ def _frame_lead(m: TwinModel, meas: dict, resim) -> str:
     where the data lie next to it and far above the aligned timing: independent blink 3244 (robots
     started up to 1.1 s late, a cycle of 0.78 s, no clock jitter) varies 0.80x the random lead's
     median, 0.97x its 2.5 % point and 16x the aligned clocks' spread; taken as aligned, its
-    robots were given a clock jitter of 2.9e-4 to make up the rest, and a clock drift at its
-    stated size, named with a score of 161 before, scored 4.9 and was not named.
+    robots were given a clock jitter of 2.9e-4 to make up the rest: clocks that jitter, for a
+    world whose clocks do not.
 
     Toggles are timed to the frames. With a random lead the timing error differs from trial to
     trial and from replicate to replicate; aligned, it is the same in every replicate of a trial
