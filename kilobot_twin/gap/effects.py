@@ -665,8 +665,9 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
     w = 1.0 / np.maximum(np.abs(A).max(axis=1), 1e-30)  # rows scaled so they weigh alike
     data = stats(meas)
     (excess, spread), miss = nnls(A * w[:, None], (data - r0) * w)
-    noiseless = None if like is None else not np.any(like.swarm.sensor_noise > 0)
-    if (excess == 0.0 and noiseless is None) or noiseless:
+    # Without noise where the data ask for none above the floor, or where ``like`` has none.
+    noiseless = excess == 0.0 if like is None else not np.any(like.swarm.sensor_noise > 0)
+    if noiseless:
         # The data ask for no noise above the floor: a sensor without noise, whose rounding a
         # robot repeats alike in every sweep where its offset stays (and draws anew where the
         # offset shifts by a count or more). Dithered by the floor, the model's gains varied 3-7x
@@ -676,7 +677,7 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
         z0 = sim_stats(0.0, 0.0)
         col = (sim_stats(0.0, po) - z0) / po**2
         (spread0,), miss0 = nnls((col * w)[:, None], (data - z0) * w)
-        if (noiseless or miss0 < miss) and np.sqrt(spread0) >= ROUNDING_DRAWN_ANEW:
+        if (like is not None or miss0 < miss) and np.sqrt(spread0) >= ROUNDING_DRAWN_ANEW:
             return m.with_traits(sensor_noise=np.zeros(n), sensor_offset_trial_sd=np.full(n, np.sqrt(spread0)))
     return m.with_traits(sensor_noise=np.full(n, np.sqrt(ADC_ROUNDING_VAR + excess)),
                          sensor_offset_trial_sd=np.full(n, np.sqrt(spread)))

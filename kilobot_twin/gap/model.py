@@ -303,7 +303,7 @@ def blink_leds(sc, swarm: SwarmTraits, seed: int, runs, trials, T: int, phase=No
     inc = (sc.tick_hz * sc.dt_s) * st.clock
     acc = np.zeros(st.clock.shape)
     if phase is not None:  # each robot's clock stands at that fraction of its cycle at the first frame
-        acc = np.broadcast_to(2.0 * sc.behavior.half_period_ticks * np.asarray(phase, dtype=float), st.clock.shape).copy()
+        acc = 2.0 * sc.behavior.half_period_ticks * np.asarray(phase, dtype=float)
         ticks[..., 0] = acc
     for k in range(1, T):
         acc = acc + inc
