@@ -2,14 +2,12 @@
 on straight tracks (speed scales every displacement; a common turn rate w turns the path so that
 its heading at time t is w t)."""
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
+from . import benchmark
 
-_spec = importlib.util.spec_from_file_location("common_shift", Path(__file__).parents[2] / "benchmarks" / "common_shift.py")
-cs = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(cs)
+cs = benchmark.load("common_shift")
 
 
 def _straight(folder: Path, K=3, N=2, T=601, dt=0.1, v=0.01):

@@ -3,17 +3,14 @@ power, checked against a Monte Carlo of the tests written out (normal trial valu
 exactly the stated sd), and the residual about robots' lines it reads (``workflow.about_lines``, which
 ``minimum_detectable`` reads the drift's noise with) against a hand computation."""
 
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from kilobot_twin.gap.workflow import about_lines
+from . import benchmark
 
-_spec = importlib.util.spec_from_file_location("drift_bound", Path(__file__).parents[2] / "benchmarks" / "drift_bound.py")
-db = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(db)
+db = benchmark.load("drift_bound")
 
 
 @pytest.mark.parametrize("known", [True, False])

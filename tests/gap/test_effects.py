@@ -6,6 +6,7 @@ import pytest
 from kilobot_twin.gap import effects as E
 from kilobot_twin.gap.model import Conditions, simulate
 from kilobot_twin.gap.summaries import robust_sd
+from . import benchmark
 
 
 def _conditions(n=12, trials=4, duration=60.0, dt=0.1):
@@ -398,12 +399,8 @@ def test_bounded_combination_against_theory():
 def _synth_as_evaluated(tmp_path, hidden: str, seed: int):
     """A motion dataset as `eval_gap.py --generator synth --random-nuisance` writes it (its
     ``_write``): (folder, truth)."""
-    import importlib.util
-    from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location("eval_gap", Path(__file__).parents[2] / "benchmarks" / "eval_gap.py")
-    ev = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(ev)
+    ev = benchmark.load("eval_gap")
     ds = tmp_path / "motion"
     truth = ev._write({"kind": "motion", "hidden": hidden, "seed": seed, "generator": "synth", "random_nuisance": True},
                       ds, 1.0)

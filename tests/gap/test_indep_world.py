@@ -1,9 +1,7 @@
 """The independent world (benchmarks/indep_world.py) writes datasets the project's reader accepts,
 and its physics agrees with the project's summaries (two code bases, one answer)."""
 
-import importlib.util
 import json
-from pathlib import Path
 
 import inspect
 
@@ -13,10 +11,9 @@ import pytest
 from kilobot_twin.recording import measured
 from kilobot_twin.gap.model import measured_summaries
 from kilobot_twin.gap.summaries import light_sweep
+from . import benchmark
 
-_spec = importlib.util.spec_from_file_location("indep_world", Path(__file__).parents[2] / "benchmarks" / "indep_world.py")
-iw = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(iw)
+iw = benchmark.load("indep_world")
 
 
 @pytest.mark.parametrize("kind, hidden", [("motion", "heading_bias,floor_tilt"), ("motion", "motion_noise"),

@@ -13,6 +13,7 @@ from kilobot_twin.gap import effects as E
 from kilobot_twin.gap.model import measured_summaries
 from kilobot_twin.gap.synth import synth
 from kilobot_twin.gap.workflow import GapSettings, _Fitter, _heldout
+from . import benchmark
 
 
 def test_leverage_by_predictor():
@@ -371,12 +372,8 @@ def test_a_random_lead_never_predicts_a_rate_closer_than_the_frames_round_it(tmp
     clock jitter: the base takes a random lead, and every held-out toggle rate's predictive
     variance is at least the data's rounding floor (summaries.blink), where the replicates alone
     fell below it (tracks whose periods span nearly a whole number of frames)."""
-    import importlib.util
-    from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location("indep_world", Path(__file__).parents[2] / "benchmarks" / "indep_world.py")
-    iw = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(iw)
+    iw = benchmark.load("indep_world")
     iw.generate("blink", "none", tmp_path / "d", seed=21, nuisance={"start_delay_s": 6.0, "clock_trial_sd": 0.0,
                                                                     "tick_diffusion": 0.0, "time_jitter_s": 0.0})
     cond, meas = measured_summaries(measured.load(tmp_path / "d"))

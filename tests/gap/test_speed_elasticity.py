@@ -8,18 +8,14 @@ too: with 0.5 mm of tracking noise a 2 s chord of a robot at 11 mm/s is 22 mm lo
 noise lengthens it by about 2 x 0.5^2 / 22^2 = 0.1 %, so the elasticity is 1 within a few
 hundredths (heading noise shortens a chord by a like amount)."""
 
-import importlib.util
-from pathlib import Path
 
 import pytest
 
 from kilobot_twin.gap.observe import Observation
 from kilobot_twin.gap.synth import synth
+from . import benchmark
 
-_spec = importlib.util.spec_from_file_location("speed_elasticity",
-                                               Path(__file__).parents[2] / "benchmarks" / "speed_elasticity.py")
-se_mod = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(se_mod)
+se_mod = benchmark.load("speed_elasticity")
 
 
 @pytest.mark.parametrize("tracking_m", [0.0005, 0.008])

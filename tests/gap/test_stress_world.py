@@ -2,8 +2,6 @@
 YAML, columns in another order, rows shuffled), and without nuisances its robots turn and drive as
 its truth says, measured by the twin's summaries (two code bases, one answer)."""
 
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,10 +9,9 @@ import pytest
 from kilobot_twin.recording import measured
 from kilobot_twin.gap.model import measured_summaries
 from kilobot_twin.gap.workflow import GapSettings, run_gap
+from . import benchmark
 
-_spec = importlib.util.spec_from_file_location("stress_world", Path(__file__).parents[2] / "benchmarks" / "stress_world.py")
-sw = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(sw)
+sw = benchmark.load("stress_world")
 
 
 @pytest.mark.parametrize("kind, hidden", [("motion", "heading_bias,bias_drift"), ("light_sweep", "sensor_gain"),

@@ -12,6 +12,7 @@ import pytest
 from kilobot_twin.core.traits import load_swarm
 from kilobot_twin.gap.synth import synth
 from kilobot_twin.gap.workflow import GapSettings, run_gap
+from . import benchmark
 
 FAST = GapSettings(seed=1, m_null=80, m_ref=12, m_score=20, boot=300)
 
@@ -237,12 +238,8 @@ def test_blink_frame_lead_follows_the_recording(tmp_path):
     2026-11-23). The twin's own generator starts every clock at frame 0: without clock jitter
     (which would outweigh the timing error, and either choice is then right) the base sees it
     aligned, and names clock_drift too."""
-    import importlib.util
-    from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location("indep_world", Path(__file__).parents[2] / "benchmarks" / "indep_world.py")
-    iw = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(iw)
+    iw = benchmark.load("indep_world")
     indep = tmp_path / "indep"
     iw.generate("blink", "clock_drift", indep, seed=1019)
     rep = run_gap([str(indep)], tmp_path / "out_i", gs=GapSettings(seed=1019), log=lambda *a: None)
@@ -280,12 +277,8 @@ def test_the_dataset_s_program_sets_what_the_twin_simulates(tmp_path, kind, hidd
     commanded speed; measured-v1 states them in meta.yaml), in the independent world: the
     recovered clock rates and speed factors are relative to that program, as the truth is, not
     to the twin's 30 ticks at 31 Hz or its 1.13 cm/s (which would scale them by 1.7 and 1.5)."""
-    import importlib.util
-    from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location("indep_world", Path(__file__).parents[2] / "benchmarks" / "indep_world.py")
-    iw = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(iw)
+    iw = benchmark.load("indep_world")
     truth = iw.generate(kind, hidden, tmp_path / "d", seed=3, nuisance_scale=1.0, fixed_shape=True, program=program)
     rep = run_gap([str(tmp_path / "d")], tmp_path / "out", gs=FAST, log=lambda *a: None)
     assert rep["named_effects"] == [hidden]
@@ -469,16 +462,6 @@ def test_a_tracker_whose_errors_persist_over_frames_is_not_read_as_heading_noise
     assert abs(nz.get("tracking_tau_s", 0) / 0.5 - 1) < 0.3 and abs(nz.get("tracking_correlated_m", 0) / 0.006 - 1) < 0.15, nz
 
 
-def _world(name):
-    import importlib.util
-    from pathlib import Path
-
-    spec = importlib.util.spec_from_file_location(name, Path(__file__).parents[2] / "benchmarks" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 @pytest.mark.parametrize("world, kind, seed, comps", [
     ("indep_world", "motion", 3000, ("speed",)),  # 5 mm of tracking noise at 10 Hz
     ("indep_world", "blink", 3004, ("toggle_rate",)),  # 14 robots x 8 trials
@@ -495,7 +478,7 @@ def test_the_base_reproduces_the_level_of_null_data_from_other_worlds(tmp_path, 
     from kilobot_twin.gap import effects as E
     from kilobot_twin.gap import workflow as W
 
-    _world(world).generate(kind, "", tmp_path / "d", seed=seed, program="random")
+    benchmark.load(world).generate(kind, "", tmp_path / "d", seed=seed, program="random")
     cond, meas = W.measured_summaries(W._load_data(str(tmp_path / "d")))
     meas = E.Summaries(meas, np.arange(cond.trials))
     start = E.nominal_model(kind, cond.robot_ids, cond.forward_speed_m_s)
@@ -513,12 +496,8 @@ def test_robots_whose_noise_differs_by_factors_are_named_and_kept_apart(tmp_path
     times too noisy, the between-robot flag stayed after the fit and the noise ended
     `unexplained`; pooled on a log scale (effects.pool_intensities) it is named, the gap shrinks,
     and the robots' estimates follow their truth on the log scale."""
-    import importlib.util
-    from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location("indep_world", Path(__file__).parents[2] / "benchmarks" / "indep_world.py")
-    iw = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(iw)
+    iw = benchmark.load("indep_world")
     truth = iw.generate("motion", "motion_noise", tmp_path / "d", seed=2, effect_scale=2.5, fixed_shape=True)
     rep = run_gap([str(tmp_path / "d")], tmp_path / "out", gs=GapSettings(seed=2), log=lambda *a: None)
     assert rep["named_effects"] == ["motion_noise"] and not rep["unexplained"]
@@ -540,12 +519,8 @@ def test_a_clock_drift_with_robots_missing_from_trials_is_named(tmp_path):
     was in a trial) had their noise taken 11-72x too large and the drift, 2.1x its stated
     minimum detectable size, unnamed (`unexplained`); with the two-way fit it is named and
     the gap shrinks."""
-    import importlib.util
-    from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location("indep_world", Path(__file__).parents[2] / "benchmarks" / "indep_world.py")
-    iw = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(iw)
+    iw = benchmark.load("indep_world")
     ds = tmp_path / "blink"
     truth = iw.generate("blink", "clock_drift", ds, seed=3058, program="random")
     assert [tuple(m) for m in truth["shape"]["missing"]] == [(2, 1), (2, 2), (1, 6)]
