@@ -547,7 +547,7 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
     # phases against the frames and brings the rounding's full spread back with it (square waves
     # toggling every 2.16 frames, jitter 5e-4: fitted 3.3e-4 from the jitter-free timing).
     for _ in range(JITTER_STEPS if resim is not None and spread > 0 else 0):
-        timing = _typical_spread(_spread_all, resim(m)["toggle_rate"], keep) - spread
+        timing = float(np.nanmean(_spread_all(resim(m)["toggle_rate"], keep))) - spread
         spread = max(data - timing, 0.0)
         m = m.with_traits(clock_trial_sd=np.full(n, np.sqrt(spread)))
     # (clock jitter scales each trial's rate by a factor of mean 1: the jitter-free simulation's
@@ -660,17 +660,11 @@ def _timing_var(spread, ref, model, resim=None, keep=None) -> tuple[float, np.nd
     if resim is not None and np.any(model.swarm.clock_trial_sd > 0):
         ref = resim(model.with_traits(clock_trial_sd=np.zeros(len(model.swarm))))
     keep = _regular_cells(ref) if keep is None else keep
-    return _typical_spread(spread, ref["toggle_rate"], keep), keep
+    return float(np.nanmean(spread(ref["toggle_rate"], keep))), keep
 
 
 #: Steps that refit clock jitter at the timing part of the fitted jitter (:func:`fit_base`).
 JITTER_STEPS = 2
-
-
-def _typical_spread(spread, rate, keep) -> float:
-    """The spread (:func:`_spread_own`, :func:`_spread_all`) of simulated replicates ``rate``
-    (M, K, N) over the cells ``keep``, averaged over replicates."""
-    return float(np.nanmean(spread(rate, keep)))
 
 
 ADC_ROUNDING_VAR = 1.0 / 12.0  # counts^2
