@@ -539,17 +539,9 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
     jitter_free = resim(m.with_traits(clock_trial_sd=np.zeros(n))) if resim is not None else ref
     timing, keep = _timing_var(_spread_all, jitter_free, m)
     data = _spread_all(meas["toggle_rate"], keep)
-    spread = max(data - timing, 0.0)
-    m = m.with_traits(clock_trial_sd=np.full(n, np.sqrt(spread)))
-    # The timing part again at the fitted jitter: not the jitter-free one. A common clock rate
-    # can beat with the frames, so that the first and last toggles of every robot round alike and
-    # the rates vary less than rounding at random would make them; jitter spreads the robots'
-    # phases against the frames and brings the rounding's full spread back with it (square waves
-    # toggling every 2.16 frames, jitter 5e-4: fitted 3.3e-4 from the jitter-free timing).
-    for _ in range(JITTER_STEPS if resim is not None and spread > 0 else 0):
-        timing = float(np.nanmean(_spread_all(resim(m)["toggle_rate"], keep))) - spread
-        spread = max(data - timing, 0.0)
-        m = m.with_traits(clock_trial_sd=np.full(n, np.sqrt(spread)))
+    m = m.with_traits(clock_trial_sd=np.full(n, np.sqrt(max(data - timing, 0.0))))
+    if resim is not None:  # the timing part at the fitted jitter
+        m = _jitter_at_its_timing(m, _spread_all, meas["toggle_rate"], resim_level or resim)
     # (clock jitter scales each trial's rate by a factor of mean 1: the jitter-free simulation's
     # mean rate is the model's)
     return _match_clock_level(m, meas, jitter_free if resim is not None else None)
@@ -663,8 +655,62 @@ def _timing_var(spread, ref, model, resim=None, keep=None) -> tuple[float, np.nd
     return float(np.nanmean(spread(ref["toggle_rate"], keep))), keep
 
 
-#: Steps that refit clock jitter at the timing part of the fitted jitter (:func:`fit_base`).
+#: Fixed-point steps of :func:`_jitter_at_its_timing`.
 JITTER_STEPS = 2
+
+
+#: Deviations beyond this many robust sds are clipped there in the spreads that
+#: :func:`_jitter_at_its_timing` matches.
+JITTER_CLIP = 3.0
+
+
+def _jitter_at_its_timing(m: TwinModel, spread, rate, resim) -> TwinModel:
+    """``m`` with the clock jitter at which its simulated toggle rates spread as much as the
+    data's ``rate`` do (:func:`_spread_all` or :func:`_spread_own`), over the cells ``m``'s
+    clocks time regularly and with each deviation clipped at :data:`JITTER_CLIP` robust sds of
+    the data's, alike in the data and in the simulations.
+
+    - The timing part of the spread at the jitter, not at none: clocks that beat with the
+      frames round the first and last toggles of every robot alike, and the rates vary less
+      than rounding at random would make them; jitter spreads the robots' phases against the
+      frames and brings the rounding's full spread back with it (square waves toggling every
+      2.16 frames, jitter 5e-4: 3.3e-4 fitted from the jitter-free timing alone). From the
+      jitter-free timing, :data:`JITTER_STEPS` fixed-point steps, simulated with ``resim``
+      (the same random numbers in every step, or the steps follow Monte Carlo errors).
+    - Regular cells (:func:`_regular_cells`) from one half of the replicates, the spread from
+      the other: the cells a simulation shows no missed phase in are, in that simulation, timed
+      more evenly than they are (5.9e-4 fitted for 5e-4 from one half for both, a frame lost in
+      50). Which cells may miss a phase depends on the clocks' rates: from ``m``'s own.
+    - Clipped: a regular cell, too, misses a phase now and then (a rate off by one phase in the
+      trial's hundreds, 5-10 of the others' sds), and the data's spread, one sample of a
+      heavy-tailed statistic, fitted no jitter in 2 of 8 such datasets and 8e-4 in another.
+
+    0 where the data vary no more than the jitter-free timing."""
+    n = len(m.swarm)
+    m = m.with_traits(clock_trial_sd=np.zeros(n))
+    sim = np.asarray(resim(m)["toggle_rate"], dtype=float)
+    half = sim.shape[0] // 2
+    keep = _regular_cells({"toggle_rate": sim[:half]})
+    own = spread is _spread_own
+    dev = _deviations(_kept(rate, keep), own)
+    clip = JITTER_CLIP * max(robust_sd(dev[np.isfinite(dev)]), float(np.sqrt(np.nanmean(spread(sim[half:], keep)))))
+    data, jitter = spread(1.0 + np.clip(dev, -clip, clip), None), 0.0
+    for step in range(JITTER_STEPS + 1):
+        if step:
+            sim = np.asarray(resim(m)["toggle_rate"], dtype=float)
+        timing = float(np.nanmean(spread(1.0 + np.clip(_deviations(_kept(sim[half:], keep), own), -clip, clip), None))) - jitter
+        jitter = max(data - timing, 0.0)
+        m = m.with_traits(clock_trial_sd=np.full(n, np.sqrt(jitter)))
+        if jitter == 0.0:
+            break
+    return m
+
+
+def _deviations(rate, own: bool):
+    """Relative deviations of toggle rates (..., K, N) from each robot's mean (``own``) or from
+    the mean of all."""
+    with np.errstate(all="ignore"):
+        return rate / (_nanmean(rate, axis=-2)[..., None, :] if own else _nanmean(rate, axis=(-2, -1))[..., None, None]) - 1.0
 
 
 ADC_ROUNDING_VAR = 1.0 / 12.0  # counts^2
@@ -1268,11 +1314,13 @@ class ClockDrift(Effect):
             m = model.with_traits(clock_rate=c, clock_trial_sd=noise.swarm.clock_trial_sd, frame_lead=noise.frame_lead)
         else:
             timing, keep = _timing_var(_spread_own, ref, model, resim)
-            spread = max(_spread_own(meas["toggle_rate"], keep) - timing, 0.0)
-            m = model.with_traits(clock_rate=c, clock_trial_sd=np.full(n, np.sqrt(spread)))
+            data = _spread_own(meas["toggle_rate"], keep)
+            m = model.with_traits(clock_rate=c, clock_trial_sd=np.full(n, np.sqrt(max(data - timing, 0.0))))
         m = _own_fixed_point(m.pooled("toggle_rate", w), "clock_rate", "toggle_rate", rate, resim, iterations)[0]
         if resim is not None and m.frame_lead == "random" and noise is None:
             m = self._lead_with_own_clocks(m, meas, rate, resim, iterations)
+            if m.frame_lead == "random":  # the jitter at the timing of the robots' own clocks
+                m = _jitter_at_its_timing(m, _spread_own, meas["toggle_rate"], resim)
         return m.with_individual({"clock_rate": w}, clock_rate=m.swarm.clock_rate * partial_pool(meas["toggle_rate"], keep_spread=True)[0] / rate)
 
     @staticmethod
