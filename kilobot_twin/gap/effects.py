@@ -679,8 +679,8 @@ def _jitter_at_its_timing(m: TwinModel, spread, rate, resim) -> TwinModel:
       (the same random numbers in every step, or the steps follow Monte Carlo errors).
     - Regular cells (:func:`_regular_cells`) from one half of the replicates, the spread from
       the other: the cells a simulation shows no missed phase in are, in that simulation, timed
-      more evenly than they are (5.9e-4 fitted for 5e-4 from one half for both, a frame lost in
-      50). Which cells may miss a phase depends on the clocks' rates: from ``m``'s own.
+      more evenly than they are (before the clip below: 5.9e-4 fitted for 5e-4 from one half
+      for both, a frame lost in 50). Which cells may miss a phase depends on the clocks' rates: from ``m``'s own.
     - Clipped: a regular cell, too, misses a phase now and then (a rate off by one phase in the
       trial's hundreds, 5-10 of the others' sds), and the data's spread, one sample of a
       heavy-tailed statistic, fitted no jitter in 2 of 8 such datasets and 8e-4 in another. The
