@@ -677,10 +677,8 @@ def _jitter_at_its_timing(m: TwinModel, spread, rate, resim) -> TwinModel:
       2.16 frames, jitter 5e-4: 3.3e-4 fitted from the jitter-free timing alone). From the
       jitter-free timing, :data:`JITTER_STEPS` fixed-point steps, simulated with ``resim``
       (the same random numbers in every step, or the steps follow Monte Carlo errors).
-    - Regular cells (:func:`_regular_cells`) from one half of the replicates, the spread from
-      the other: the cells a simulation shows no missed phase in are, in that simulation, timed
-      more evenly than they are (before the clip below: 5.9e-4 fitted for 5e-4 from one half
-      for both, a frame lost in 50). Which cells may miss a phase depends on the clocks' rates: from ``m``'s own.
+    - Over regular cells (:func:`_regular_cells`), which depend on the clocks' rates: from
+      ``m``'s own.
     - Clipped: a regular cell, too, misses a phase now and then (a rate off by one phase in the
       trial's hundreds, 5-10 of the others' sds), and the data's spread, one sample of a
       heavy-tailed statistic, fitted no jitter in 2 of 8 such datasets and 8e-4 in another. The
@@ -690,18 +688,17 @@ def _jitter_at_its_timing(m: TwinModel, spread, rate, resim) -> TwinModel:
     n = len(m.swarm)
     m = m.with_traits(clock_trial_sd=np.zeros(n))
     sim = np.asarray(resim(m)["toggle_rate"], dtype=float)
-    half = sim.shape[0] // 2
-    keep = _regular_cells({"toggle_rate": sim[:half]})
+    keep = _regular_cells({"toggle_rate": sim})
     own = spread is _spread_own
     dev = _deviations(_kept(rate, keep), own)
     # (the scale from absolute deviations: rates counted on a lattice of frames tie, and the
     # median absolute deviation of synth blink 3259's 64 rates is 0 where their sd is 7e-4)
-    clip = JITTER_CLIP * max(np.sqrt(np.pi / 2) * float(np.nanmean(np.abs(dev))), float(np.sqrt(np.nanmean(spread(sim[half:], keep)))))
+    clip = JITTER_CLIP * max(np.sqrt(np.pi / 2) * float(np.nanmean(np.abs(dev))), float(np.sqrt(np.nanmean(spread(sim, keep)))))
     data, jitter = spread(1.0 + np.clip(dev, -clip, clip), None), 0.0
     for step in range(JITTER_STEPS + 1):
         if step:
             sim = np.asarray(resim(m)["toggle_rate"], dtype=float)
-        timing = float(np.nanmean(spread(1.0 + np.clip(_deviations(_kept(sim[half:], keep), own), -clip, clip), None))) - jitter
+        timing = float(np.nanmean(spread(1.0 + np.clip(_deviations(_kept(sim, keep), own), -clip, clip), None))) - jitter
         jitter = max(data - timing, 0.0)
         m = m.with_traits(clock_trial_sd=np.full(n, np.sqrt(jitter)))
         if jitter == 0.0:

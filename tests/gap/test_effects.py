@@ -325,6 +325,31 @@ def test_clock_jitter_is_read_from_rates_that_tie_on_a_lattice():
     assert m.swarm.clock_trial_sd[0] == pytest.approx(truth, abs=4 * np.sqrt(2 / (rate.size - 1)) * var / (2 * truth))
 
 
+def test_a_phase_missed_now_and_then_does_not_set_the_clock_jitter():
+    """Rates written here: 30 robots x 8 trials, jitter 5e-4 plus timing 5e-4, and in one cell in
+    a hundred a count that missed or gained a phase (3e-3), in the data as in the simulations
+    (drawn the same way, the same random numbers in every call of one fit). Over 100 datasets the fitted
+    jitter is 5e-4 within 3 standard errors and its sd at most 1.5x what 240 Gaussian rates
+    allow (variance known to sqrt(2 / 239) of itself: 4.6e-5); the sd of 100 fits is known to 7 %
+    of itself. Unclipped, a missed phase adds 36x a typical cell's square: 1.9x."""
+    n, K, truth, timing = 30, 8, 5e-4, 5e-4
+
+    def draw(rng, jitter, M=None):
+        shape = (K, n) if M is None else (M, K, n)
+        x = jitter * rng.standard_normal(shape) + timing * rng.standard_normal(shape)
+        return 1.0 + x + 3e-3 * np.sign(rng.standard_normal(shape)) * (rng.random(shape) < 0.01)
+
+    def resim_for(seed):  # a simulator per dataset: Monte Carlo errors differ between fits
+        return lambda m: {"toggle_rate": draw(np.random.default_rng(seed), float(m.swarm.clock_trial_sd[0]), M=20)}
+
+    start = E.nominal_model("blink", np.arange(n))
+    fits = np.array([E._jitter_at_its_timing(start, E._spread_all, draw(np.random.default_rng(100 + s), truth), resim_for(1000 + s)).swarm.clock_trial_sd[0]
+                     for s in range(100)])
+    bound = np.sqrt(2 / (n * K - 1)) * (truth**2 + timing**2) / (2 * truth)
+    assert abs(fits.mean() - truth) < 3 * fits.std(ddof=1) / np.sqrt(len(fits))
+    assert fits.std(ddof=1) < 1.5 * bound, (fits.std(ddof=1), bound)
+
+
 def test_a_slipped_replicate_sets_neither_the_turn_rate_statistic_nor_its_scatter():
     """The heading noise's upper bound reads the simulated turn rates' within-robot variance
     (``_noise_stats``' last column) over 20 replicates. A 2 pi unwrapping slip in one trial of
