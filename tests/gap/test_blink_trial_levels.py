@@ -1,9 +1,7 @@
 """benchmarks/blink_trial_levels.py: the trial-to-trial scatter of a null blink against its own
 world's, and one clear line for what it cannot read."""
 
-import json
 
-import numpy as np
 from . import benchmark
 
 btl = benchmark.load("blink_trial_levels")
