@@ -1,7 +1,6 @@
 """benchmarks/blink_trial_levels.py: the trial-to-trial scatter of a null blink against its own
 world's, and one clear line for what it cannot read."""
 
-
 from . import benchmark
 
 btl = benchmark.load("blink_trial_levels")
