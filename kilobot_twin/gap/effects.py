@@ -537,11 +537,11 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
     # Identical clocks: all spread of the rates is per trial, less what timing to frames gives.
     # (Simulated with m's own frame lead, which the reference simulation need not have.)
     jitter_free = resim(m.with_traits(clock_trial_sd=np.zeros(n))) if resim is not None else ref
-    timing, keep = _timing_var(_spread_all, jitter_free, m)
-    data = _spread_all(meas["toggle_rate"], keep)
-    m = m.with_traits(clock_trial_sd=np.full(n, np.sqrt(max(data - timing, 0.0))))
-    if resim is not None:  # the timing part at the fitted jitter
-        m = _jitter_at_its_timing(m, _spread_all, meas["toggle_rate"], resim_level or resim)
+    if resim is not None:  # with the timing part at the fitted jitter
+        m = _jitter_at_its_timing(m, meas["toggle_rate"], resim_level or resim, own=False)
+    else:
+        timing, keep = _timing_var(_spread_all, ref, m)
+        m = m.with_traits(clock_trial_sd=np.full(n, np.sqrt(max(_spread_all(meas["toggle_rate"], keep) - timing, 0.0))))
     # (clock jitter scales each trial's rate by a factor of mean 1: the jitter-free simulation's
     # mean rate is the model's)
     return _match_clock_level(m, meas, jitter_free if resim is not None else None)
@@ -587,26 +587,30 @@ def _frame_lead(m: TwinModel, meas: dict, resim) -> str:
     return "aligned" if data <= 0 or nearer else "random"
 
 
-def _spread_own(rate, keep=None):
+def _spread_own(rate, keep=None, clip=np.inf):
     """Relative variance of each robot's toggle rates (..., K, N) about its own mean, pooled over
     robots (what clock jitter adds to once robots' clocks differ): (...). ``keep`` (K, N): the
-    cells counted (:func:`_regular_cells`), all without it."""
-    rate = _kept(rate, keep)
-    with np.errstate(all="ignore"):
-        return within_var(rate / _nanmean(rate, axis=-2)[..., None, :])
+    cells counted (:func:`_regular_cells`), all without it; ``clip``: each relative deviation
+    clipped at +-clip."""
+    return within_var(np.clip(_deviations(rate, True, keep), -clip, clip))
 
 
-def _spread_all(rate, keep=None):
+def _spread_all(rate, keep=None, clip=np.inf):
     """Relative variance of all toggle rates (..., K, N) about their mean (what clock jitter adds
-    to when clocks are identical): (...). ``keep`` as for :func:`_spread_own`."""
-    rate = _kept(rate, keep)
-    with np.errstate(all="ignore"):
-        return np.nanvar(rate / _nanmean(rate, axis=(-2, -1))[..., None, None], axis=(-2, -1), ddof=1)
+    to when clocks are identical): (...). ``keep`` and ``clip`` as for :func:`_spread_own`."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # nothing seen: NaN
+        return np.nanvar(np.clip(_deviations(rate, False, keep), -clip, clip), axis=(-2, -1), ddof=1)
 
 
-def _kept(rate, keep):
+def _deviations(rate, own: bool, keep=None):
+    """Relative deviations of toggle rates (..., K, N), over the cells ``keep`` (NaN elsewhere;
+    all without it), from each robot's mean (``own``) or from the mean of all."""
     rate = np.asarray(rate, dtype=float)
-    return rate if keep is None else np.where(keep, rate, np.nan)
+    if keep is not None:
+        rate = np.where(keep, rate, np.nan)
+    with np.errstate(all="ignore"):
+        return rate / (_nanmean(rate, axis=-2)[..., None, :] if own else _nanmean(rate, axis=(-2, -1))[..., None, None]) - 1.0
 
 
 #: A (trial, robot) whose jitter-free replicates vary more than this many times the typical
@@ -664,11 +668,11 @@ JITTER_STEPS = 2
 JITTER_CLIP = 3.0
 
 
-def _jitter_at_its_timing(m: TwinModel, spread, rate, resim) -> TwinModel:
+def _jitter_at_its_timing(m: TwinModel, rate, resim, own: bool) -> TwinModel:
     """``m`` with the clock jitter at which its simulated toggle rates spread as much as the
-    data's ``rate`` do (:func:`_spread_all` or :func:`_spread_own`), over the cells ``m``'s
-    clocks time regularly and with each deviation clipped at :data:`JITTER_CLIP` robust sds of
-    the data's, alike in the data and in the simulations.
+    data's ``rate`` do (:func:`_spread_own` with ``own``, else :func:`_spread_all`), over the
+    cells ``m``'s clocks time regularly and with each deviation clipped at :data:`JITTER_CLIP`
+    robust sds of the data's, alike in the data and in the simulations.
 
     - The timing part of the spread at the jitter, not at none: clocks that beat with the
       frames round the first and last toggles of every robot alike, and the rates vary less
@@ -685,32 +689,23 @@ def _jitter_at_its_timing(m: TwinModel, spread, rate, resim) -> TwinModel:
       robust sd is the mean absolute deviation's (scaled to a normal's sd), as the data's.
 
     0 where the data vary no more than the jitter-free timing."""
-    n = len(m.swarm)
+    n, spread = len(m.swarm), _spread_own if own else _spread_all
     m = m.with_traits(clock_trial_sd=np.zeros(n))
-    sim = np.asarray(resim(m)["toggle_rate"], dtype=float)
-    keep = _regular_cells({"toggle_rate": sim})
-    own = spread is _spread_own
-    dev = _deviations(_kept(rate, keep), own)
+    sim = resim(m)
+    keep = _regular_cells(sim)
     # (the scale from absolute deviations: rates counted on a lattice of frames tie, and the
     # median absolute deviation of synth blink 3259's 64 rates is 0 where their sd is 7e-4)
-    clip = JITTER_CLIP * max(np.sqrt(np.pi / 2) * float(np.nanmean(np.abs(dev))), float(np.sqrt(np.nanmean(spread(sim, keep)))))
-    data, jitter = spread(1.0 + np.clip(dev, -clip, clip), None), 0.0
+    typical = np.sqrt(np.pi / 2) * float(np.nanmean(np.abs(_deviations(rate, own, keep))))
+    clip = JITTER_CLIP * max(typical, float(np.sqrt(np.nanmean(spread(sim["toggle_rate"], keep)))))
+    data, jitter = spread(rate, keep, clip), 0.0
     for step in range(JITTER_STEPS + 1):
         if step:
-            sim = np.asarray(resim(m)["toggle_rate"], dtype=float)
-        timing = float(np.nanmean(spread(1.0 + np.clip(_deviations(_kept(sim, keep), own), -clip, clip), None))) - jitter
-        jitter = max(data - timing, 0.0)
+            sim = resim(m)
+        jitter = max(data - (float(np.nanmean(spread(sim["toggle_rate"], keep, clip))) - jitter), 0.0)
         m = m.with_traits(clock_trial_sd=np.full(n, np.sqrt(jitter)))
         if jitter == 0.0:
             break
     return m
-
-
-def _deviations(rate, own: bool):
-    """Relative deviations of toggle rates (..., K, N) from each robot's mean (``own``) or from
-    the mean of all."""
-    with np.errstate(all="ignore"):
-        return rate / (_nanmean(rate, axis=-2)[..., None, :] if own else _nanmean(rate, axis=(-2, -1))[..., None, None]) - 1.0
 
 
 ADC_ROUNDING_VAR = 1.0 / 12.0  # counts^2
@@ -1320,7 +1315,7 @@ class ClockDrift(Effect):
         if resim is not None and m.frame_lead == "random" and noise is None:
             m = self._lead_with_own_clocks(m, meas, rate, resim, iterations)
             if m.frame_lead == "random":  # the jitter at the timing of the robots' own clocks
-                m = _jitter_at_its_timing(m, _spread_own, meas["toggle_rate"], resim)
+                m = _jitter_at_its_timing(m, meas["toggle_rate"], resim, own=True)
         return m.with_individual({"clock_rate": w}, clock_rate=m.swarm.clock_rate * partial_pool(meas["toggle_rate"], keep_spread=True)[0] / rate)
 
     @staticmethod

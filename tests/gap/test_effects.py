@@ -245,7 +245,8 @@ def test_clock_drift_takes_the_frame_lead_that_its_own_clocks_allow(tmp_path):
 
 
 def _square_wave_blinks(folder, seed, jitter, drop, n=24, trials=6, hz=7.5, tick_hz=31.3, half=9, span=100.0):
-    """A measured-v1 blink dataset written here: each robot a square wave of ``half`` ticks a
+    """A measured-v1 blink dataset written here, by hand rather than by ``measured.write`` (the
+    loader reads it as another program's file): each robot a square wave of ``half`` ticks a
     half, anywhere in its cycle at frame 0, its clock ``tick_hz`` times 1 + N(0, jitter) afresh
     in every trial, read every 1 / hz s with each frame but the first lost with probability
     ``drop``."""
@@ -320,7 +321,7 @@ def test_clock_jitter_is_read_from_rates_that_tie_on_a_lattice():
     rate = lattice(np.random.default_rng(1), truth)
     dev = rate / rate.mean() - 1
     assert robust_sd(dev) == 0.0  # the case the test is about
-    m = E._jitter_at_its_timing(E.nominal_model("blink", np.arange(n)), E._spread_all, rate, resim)
+    m = E._jitter_at_its_timing(E.nominal_model("blink", np.arange(n)), rate, resim, own=False)
     var = E._spread_all(rate)
     assert m.swarm.clock_trial_sd[0] == pytest.approx(truth, abs=4 * np.sqrt(2 / (rate.size - 1)) * var / (2 * truth))
 
@@ -343,7 +344,7 @@ def test_a_phase_missed_now_and_then_does_not_set_the_clock_jitter():
         return lambda m: {"toggle_rate": draw(np.random.default_rng(seed), float(m.swarm.clock_trial_sd[0]), M=20)}
 
     start = E.nominal_model("blink", np.arange(n))
-    fits = np.array([E._jitter_at_its_timing(start, E._spread_all, draw(np.random.default_rng(100 + s), truth), resim_for(1000 + s)).swarm.clock_trial_sd[0]
+    fits = np.array([E._jitter_at_its_timing(start, draw(np.random.default_rng(100 + s), truth), resim_for(1000 + s), own=False).swarm.clock_trial_sd[0]
                      for s in range(100)])
     bound = np.sqrt(2 / (n * K - 1)) * (truth**2 + timing**2) / (2 * truth)
     assert abs(fits.mean() - truth) < 3 * fits.std(ddof=1) / np.sqrt(len(fits))
