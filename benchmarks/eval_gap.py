@@ -11,7 +11,7 @@ generator). Figures, each against its target:
   effect (MDE), and "nothing wrong named" below it; nothing named on null data; ``unexplained``
   for the effect outside the library (a tilted floor);
 - recovered per-robot parameters: correlation and fitted slope (true -> fitted) per named effect;
-- gap shrink >= 80 % with its interval excluding 0, in named cases;
+- gap shrink >= 80 % with its interval excluding 0, in named cases (read two ways: see ``_shrink``);
 - run time per dataset;
 - with ``--at-mde``: every single effect is set, per dataset, to exactly the MDE that the report
   states for the same dataset without the effect; it should then be named in 80 % +- 10 %. The
@@ -417,17 +417,34 @@ def _slope_in_band(robots: int, r: float, reps: int = 4000) -> float:
 
 
 def _shrink(rows):
+    """The shrink target, read two ways. The interval of a ratio is the set of ratios the paired
+    bootstrap does not reject (``shrink_interval``); it "excludes 0" where that set does, that is
+    where the gap removed (before - after) has its interval above 0 (``removed_ci95``). Where
+    the gap before is within its noise of 0 that set has no ends, and its hull, which the
+    earlier figures counted, reaches 0 even where the gap clearly fell: both are printed."""
     named = [r for r in rows if r["named"]]
-    ok = [r["shrink"]["value"] >= 0.8 and (r["shrink"]["ci95"][0] or -np.inf) > 0 for r in named]
-    print(f"\ngap shrink >= 80 % with its 95 % interval excluding 0, in named cases: {_rate(ok)} (target >= 95 %)")
     is_above = [_above_mde(r) for r in named]
-    print(f"  of them, every hidden effect >= 1.5x the report's MDE: {_rate(g for g, a in zip(ok, is_above) if a)}; "
-          f"misses (* = above):")
-    for r, good, a in zip(named, ok, is_above):
-        if not good:
+    hull = [r["shrink"]["value"] >= 0.8 and (r["shrink"]["ci95"][0] or -np.inf) > 0 for r in named]
+    recorded = all("removed_ci95" in r["shrink"] for r in named)
+    if recorded:
+        ok = [r["shrink"]["value"] >= 0.8 and (r["shrink"]["removed_ci95"][0] or -np.inf) > 0 for r in named]
+        print(f"\ngap shrink >= 80 % with its 95 % confidence set excluding 0 (the gap removed clearly above 0), "
+              f"in named cases: {_rate(ok)} (target >= 95 %)")
+        print(f"  of them, every hidden effect >= 1.5x the report's MDE: {_rate(g for g, a in zip(ok, is_above) if a)}")
+    else:
+        ok = hull
+        print("\ngap shrink: the gap removed and its interval are not recorded in this run (written before they "
+              "were reported)")
+    print(f"gap shrink >= 80 % with the hull of that set bounded and above 0 (the earlier figure): {_rate(hull)}")
+    print(f"  of them, every hidden effect >= 1.5x the report's MDE: {_rate(g for g, a in zip(hull, is_above) if a)}; "
+          f"misses of either (* = above):")
+    for r, good, h, a in zip(named, ok, hull, is_above):
+        if not (good and h):
             lo, hi = ("open" if v is None else f"{v:.0%}" for v in r["shrink"]["ci95"])
+            rem = (f"; removed {r['shrink']['removed']:.2f} ({r['shrink']['removed_ci95'][0]:.2f} .. "
+                   f"{r['shrink']['removed_ci95'][1]:.2f})" if recorded else "")
             print(f"   {'*' if a else ' '}{r['name']:52s} named {','.join(r['named'])}: shrink {r['shrink']['value']:.0%} "
-                  f"({lo} .. {hi})")
+                  f"({lo} .. {hi}){rem}{'' if good else '  [miss]'}")
     by = defaultdict(list)
     for r in named:
         by[",".join(r["named"])].append(r["shrink"]["value"])

@@ -17,6 +17,15 @@ def _fmt(v) -> str:
         return " / ".join(_fmt(x) for x in v)
     return str(v)
 
+def _removed(sh: dict) -> str:
+    """The gap removed where the disagreement was, and whether naming reduced it at all."""
+    lo, hi = sh.get("removed_ci95") or (None, None)
+    if lo is None:
+        return ""
+    verdict = "reduced" if lo > 0 else "raised" if hi < 0 else "not clearly changed"
+    return f"; gap removed {sh['removed']:.2f} (95 % CI {lo:.2f} .. {hi:.2f}): {verdict} by the named effects"
+
+
 def _where(s: dict) -> list:
     """Lines of report.md that say where the gap is: each summary's parts, base -> final model
     (``gap_by_part``); and, when no test flagged anything yet the gap before is clearly above 0,
@@ -62,7 +71,8 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
                   f"- shrink where the disagreement was ({', '.join(s['gap_shrink']['summaries']) or 'nothing flagged'}; "
                   f"{s['gap_shrink']['before']:.2f} -> {s['gap_shrink']['after']:.2f}): {100 * s['gap_shrink']['value']:.0f} % "
                   + (f"(95 % CI {100 * s['gap_shrink']['ci95'][0]:.0f} .. {100 * s['gap_shrink']['ci95'][1]:.0f} %)"
-                     if s['gap_shrink']['ci95'][0] is not None else "(95 % CI unbounded: the gap before is not clearly above 0)"),
+                     if s['gap_shrink']['ci95'][0] is not None else "(95 % CI unbounded: the gap before is not clearly above 0)")
+                  + _removed(s["gap_shrink"]),
                   f"- metric: {s['gap_before']['metric']}; computed on held-out trials (leave-one-trial-out)", ""]
         lines += _where(s)
         lines += ["| round | signal | robots | trials | z | p |", "|---|---|---|---|---|---|"]

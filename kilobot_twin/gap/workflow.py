@@ -801,6 +801,22 @@ def shrink_interval(before: float, after: float, before_boot, after_boot, level:
     return [None if hi is None else float(1 - hi), None if lo is None else float(1 - lo)]
 
 
+def removed_interval(before_boot, after_boot, level: float = 0.95) -> list:
+    """Interval for the gap removed, before - after, from the same paired bootstrap and the same
+    order statistics (k from each end) as :func:`shrink_interval`'s test. It excludes 0 exactly
+    where that test rejects a shrink of 0 (the ratio 1), so it says whether naming reduced the
+    gap at all also where the ratio's interval has no end: a gap before within its noise of 0
+    leaves the ratio unbounded, yet the robots' gaps before and after move together, and their
+    difference can be clear (independent world 3281: before 0.14, 95 % CI -0.33 .. 0.71;
+    removed 0.72, 0.30 .. 1.22)."""
+    b, a = np.asarray(before_boot, dtype=float), np.asarray(after_boot, dtype=float)
+    d = np.sort((b - a)[np.isfinite(a) & np.isfinite(b)])
+    if not len(d):
+        return [None, None]
+    k = max(int(math.ceil((1 - level) / 2 * len(d) - 1e-9)), 1)
+    return [float(d[k - 1]), float(d[len(d) - k])]
+
+
 def _residuals(meas, base, final, comps):
     """Per-robot held-out residuals of each model, in units of the final model's spread (for plots)."""
     out = {}
@@ -1085,11 +1101,13 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         fbb = np.array([(_gap(meas, pred_base, pred_final, where, i, parts), _gap(meas, pred_final, pred_final, where, i, parts))
                         for i in idx])
         shrink_doc = {"value": float(1 - fa / fb) if fb > 0 else 0.0, "ci95": shrink_interval(fb, fa, fbb[:, 0], fbb[:, 1]),
+                      "removed": float(fb - fa), "removed_ci95": removed_interval(fbb[:, 0], fbb[:, 1]),
                       "summaries": where, "before": fb, "after": fa,
                       "before_ci95": [float(x) for x in np.percentile(fbb[:, 0], [2.5, 97.5])],
                       "after_ci95": [float(x) for x in np.percentile(fbb[:, 1], [2.5, 97.5])]}
     else:
-        shrink_doc = {"value": 0.0, "ci95": [0.0, 0.0], "summaries": [], "before": 0.0, "after": 0.0,
+        shrink_doc = {"value": 0.0, "ci95": [0.0, 0.0], "removed": 0.0, "removed_ci95": [0.0, 0.0], "summaries": [],
+                      "before": 0.0, "after": 0.0,
                       "before_ci95": [0.0, 0.0], "after_ci95": [0.0, 0.0]}
     for j, st in enumerate(steps):
         st["gap_after"] = _gap(meas, pred_cache[names[: j + 1]], pred_final, comps)

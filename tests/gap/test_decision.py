@@ -365,6 +365,39 @@ def test_shrink_interval_inverts_the_bootstrap_and_covers_at_its_level():
     assert None in shrink_interval(0.2, 0.05, 0.2 + boot[:, 0] - 1.0, 0.05 + boot[:, 1] - 0.25)
 
 
+def test_removed_gap_interval_is_the_paired_bootstraps_and_clear_where_the_ratio_has_no_end():
+    """The gap removed, before - after, over the same paired bootstrap: its interval is the
+    order statistics k = 2.5 % of 4,000 from each end of the resampled differences (written out
+    here); it covers the true difference in repeated experiments at its level (theory: 95 %;
+    1,000 experiments, binomial sd 0.7 %). Where the gap before is within its noise of 0 but
+    the robots' gaps before and after move together (correlation 0.98), the ratio's interval
+    has no end while the gap removed is clearly above 0: every resample but a few per cent has
+    the gap after below the gap before (counted here)."""
+    from kilobot_twin.gap.workflow import removed_interval, shrink_interval
+
+    rng = np.random.default_rng(12)
+    cov = np.array([[0.04, 0.01], [0.01, 0.02]])
+    boot = rng.multivariate_normal([1.0, 0.25], cov, 4000)
+    d = np.sort(boot[:, 0] - boot[:, 1])
+    assert removed_interval(boot[:, 0], boot[:, 1]) == [d[100 - 1], d[4000 - 100]]
+    hits, n = 0, 1000
+    for _ in range(n):
+        est = rng.multivariate_normal([1.0, 0.25], cov)
+        bb = est + rng.multivariate_normal([0.0, 0.0], cov, 400)
+        lo, hi = removed_interval(bb[:, 0], bb[:, 1])
+        hits += lo <= 0.75 <= hi
+    assert abs(hits / n - 0.95) <= 0.025, hits / n  # 3.5 binomial sds
+    # before 0.2 +- 0.3, after 0.2 below it in every robot resample but with its own 0.06 of noise
+    before = rng.normal(0.2, 0.3, 4000)
+    after = before - 0.2 + rng.normal(0.0, 0.06, 4000)
+    assert np.mean(before <= 0) > 0.2 and None in shrink_interval(0.2, 0.0, before, after)
+    lo, hi = removed_interval(before, after)
+    assert np.mean(before - after > 0) > 0.975 and 0 < lo < 0.2 < hi
+    # ... and where after does not move with before, the gap removed is not clear either.
+    lo, hi = removed_interval(before, rng.normal(0.0, 0.3, 4000))
+    assert lo < 0 < hi
+
+
 def test_held_out_density_is_gaussian_within_4_sd_and_linear_beyond():
     """The held-out log-density against the normal's (scipy) within 4 predictive sds and a hand
     computation beyond; one gross error moves a score by at most 4 per sd the prediction moves,

@@ -36,6 +36,8 @@ def test_heading_bias_named_recovered_and_gap_shrinks(tmp_path):
     assert np.all(np.abs(fitted.heading_bias - true) <= tol), (fitted.heading_bias - true, tol)
     assert abs(np.polyfit(true, fitted.heading_bias, 1)[0] - 1) <= 0.1
     assert rep["gap_shrink"]["value"] >= 0.8 and rep["gap_shrink"]["ci95"][0] > 0
+    sh = rep["gap_shrink"]  # the gap removed, as the report's own numbers before and after make it
+    assert sh["removed"] == pytest.approx(sh["before"] - sh["after"]) and 0 < sh["removed_ci95"][0] < sh["removed"]
     assert rep["disagreements"][0]["signal"] == "turn_rate:between_robots"
     # The report has every field the issue names.
     doc = json.loads((tmp_path / "out" / "report.json").read_text())
