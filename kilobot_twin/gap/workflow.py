@@ -44,7 +44,7 @@ from ..core.kinematics import heading_bias_from_turn_rate
 from ..recording import measured
 from ..errors import ConfigError
 from . import effects as E
-from . import summaries
+from . import summaries, synth
 from .model import COMPONENTS, Conditions, measured_summaries, simulate
 
 
@@ -1655,7 +1655,11 @@ def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
                 **({"lens_k1_per_m2": cond.lens["k1_per_m2"], "lens_centre_m": list(cond.lens["centre_m"])}
                    if cond.lens is not None else {})}
     if base.kind == "light_sweep":
-        return {"sensor_noise_counts": float(sw.sensor_noise.mean()),
+        # The twin's reading noise is per ADC sample, and a reading averages ``samples`` of them:
+        # the noise a reading carries (what a user measures of a still robot) is sd / sqrt(samples).
+        samples = synth.light_scenario(cond.duration_s, cond.dt_s, cond.sensor_knee).sensor.samples
+        return {"sensor_noise_per_sample_counts": float(sw.sensor_noise.mean()),
+                "reading_noise_counts": float(sw.sensor_noise.mean() / np.sqrt(samples)), "samples_per_reading": int(samples),
                 "sensor_offset_trial_sd_counts": float(sw.sensor_offset_trial_sd.mean()),
                 "sensor_knee": float(cond.sensor_knee)}
     return {"clock_trial_sd": float(sw.clock_trial_sd.mean()), "frame_lead": base.frame_lead}

@@ -179,6 +179,8 @@ def test_the_base_reads_the_sensors_two_noises_of_another_world(tmp_path, seed, 
     else:
         assert got**2 <= 4 * np.sqrt(2.0 / dof) * E.within_var(offsets), (got, dof)
     assert abs(reading_sd / truth["nuisance"]["sensor_noise"] - 1) < 4 * rel, (reading_sd, dof)
+    # The report states the noise a reading carries, the one a user measures, beside the per-sample one.
+    assert W._nuisances(base, cond)["reading_noise_counts"] == pytest.approx(reading_sd, rel=1e-12)
 
 
 def test_the_base_rounds_as_another_worlds_noiseless_sensor(tmp_path):
