@@ -530,6 +530,36 @@ def test_a_glitch_among_the_stray_frames_of_a_lost_robot_is_removed():
     assert removed == 1
 
 
+@pytest.mark.parametrize("where", ["last", "first", "before a gap", "beside the last"])
+def test_a_glitch_on_a_track_s_end_goes_and_its_neighbours_stay(where):
+    """A glitch of 5-30 cm on a track's end: its last or first observed sample, or the last
+    before a gap longer than the span (the third world's tracks end where a robot leaves the
+    field, and its glitches are 3-33 cm). Extrapolated from its two neighbours, the end's
+    residual is scaled to half for its noise, and the neighbour's line runs to the glitch: both
+    read G / 2 (so an end glitch is seen from about 2 x 1.1 cm here; 5 cm is 5.8 residual sds
+    beyond that threshold). A glitch beside the end reads G there and G at the end. By hand:
+    the glitch goes in every track, and a good sample only as often as Gaussian noise allows
+    (4.5 sds in 2-D: exp(-4.5^2 / 2) = 4e-5 of the 120,000 samples, up to 1e-4 near an end:
+    5-12 expected; at most 30, beyond which Poisson(12) has 1e-5). Before the end was told from its
+    neighbour, the wrong one of the two went in a quarter to three quarters of the tracks, and
+    with a glitch on the end the next good samples after it too."""
+    rng = np.random.default_rng(5)
+    n, T = 2000, 60
+    x, y = _straight(rng, n, T, dt=0.2, v=0.017)
+    e = {"last": T - 1, "first": 0, "before a gap": 30, "beside the last": T - 2}[where]
+    if where == "before a gap":
+        x[:, 31:45], y[:, 31:45] = np.nan, np.nan  # 14 frames lost at 5 Hz: beyond the 2 s span
+    g = 0.05 + 0.25 * rng.random(n)
+    phi = rng.uniform(-np.pi, np.pi, n)
+    x[:, e] += g * np.cos(phi)
+    y[:, e] += g * np.sin(phi)
+    xc, _, removed = summaries.reject_glitches(x, y, 0.002, dt_s=0.2)
+    assert np.isnan(xc[:, e]).all()
+    lost = np.isnan(xc) & np.isfinite(x)
+    lost[:, e] = False
+    assert lost.sum() <= 30, (lost.sum(), np.nonzero(lost.any(0))[0])
+
+
 def test_a_track_s_end_beyond_a_gap_is_removed_no_more_often_than_gaussian_noise_allows():
     """A track's last sample 4 frames after a pair of frames 1 apart, on pure Gaussian noise: the
     extrapolated residual has (1 + 5^2 + 4^2) = 42 noise variances, so scaled to the interior's
