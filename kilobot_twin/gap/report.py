@@ -17,6 +17,7 @@ def _fmt(v) -> str:
         return " / ".join(_fmt(x) for x in v)
     return str(v)
 
+
 def _removed(sh: dict) -> str:
     """The gap removed where the disagreement was, and whether naming reduced it at all."""
     lo, hi = sh.get("removed_ci95") or (None, None)
