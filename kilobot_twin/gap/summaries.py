@@ -585,7 +585,7 @@ def _end_glitches(x, y, dn, bad, thr, span, prev_i, next_i):
     neighbour reads G there and G at the end. Both are ties, which the wrong sample won as
     often as not: removed, then the next sample the round after, while the glitch stayed
     (third world 3292: the last frame of a track 24 cm off, three good frames before it
-    removed; that track's heading diffusion was 36x the swarm's and the base's held-out gap on
+    removed; that track's heading diffusion was 1,300x the median track's and the base's held-out gap on
     null data 7.5). Each of the two (end, neighbour) is tried out: a sample explains the
     residuals where, without it, each of its neighbours lies within the threshold of its own
     line or extrapolation. Where one of the two explains them (both: the one that leaves the
