@@ -535,16 +535,16 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
     if resim is not None:
         m = m.with_traits(frame_lead=_frame_lead(m, meas, resim))
     # Identical clocks: all spread of the rates is per trial, less what timing to frames gives.
-    # (Simulated with m's own frame lead, which the reference simulation need not have.)
-    jitter_free = resim(m.with_traits(clock_trial_sd=np.zeros(n))) if resim is not None else ref
-    if resim is not None:  # with the timing part at the fitted jitter
-        m = _jitter_at_its_timing(m, meas["toggle_rate"], resim_level or resim, own=False)
-    else:
+    if resim is None:
         timing, keep = _timing_var(_spread_all, ref, m)
         m = m.with_traits(clock_trial_sd=np.full(n, np.sqrt(max(_spread_all(meas["toggle_rate"], keep) - timing, 0.0))))
-    # (clock jitter scales each trial's rate by a factor of mean 1: the jitter-free simulation's
-    # mean rate is the model's)
-    return _match_clock_level(m, meas, jitter_free if resim is not None else None)
+        return _match_clock_level(m, meas, None)
+    # (simulated with m's own frame lead, which the reference simulation need not have, and with
+    # the timing part at the fitted jitter; clock jitter scales each trial's rate by a factor of
+    # mean 1, so the jitter-free simulation's mean rate is the model's)
+    jitter_free = resim(m.with_traits(clock_trial_sd=np.zeros(n)))
+    m = _jitter_at_its_timing(m, meas["toggle_rate"], resim_level or resim, own=False)
+    return _match_clock_level(m, meas, jitter_free)
 
 
 def _match_clock_level(m: TwinModel, meas: dict, sim: dict | None) -> TwinModel:

@@ -496,6 +496,19 @@ def _observed_neighbours(ok):
     return prev_i, next_i
 
 
+def _on_a_line(ok, prev_i, next_i, max_span: int):
+    """The observed samples with an observed neighbour on each side at most ``max_span`` frames
+    apart, read against the line between them (the rest are ends, extrapolated)."""
+    T = ok.shape[-1]
+    return ok & (prev_i >= 0) & (next_i < T) & (next_i - prev_i <= max_span)
+
+
+def _residual_2d(x, y, span: int):
+    """Distance of each sample from the line (or, at an end, the extrapolation within 6 frames)
+    through its observed neighbours (:func:`_interp_residual` of both coordinates)."""
+    return np.hypot(_interp_residual(x, span, 6), _interp_residual(y, span, 6))
+
+
 def _interp_residual(a, max_span: int = 6, end_span: int | None = None):
     """a[j] minus the straight line between its previous and next *observed* samples (at most
     ``max_span`` frames apart, else NaN): the second difference across tracking gaps; (..., T).
@@ -506,7 +519,7 @@ def _interp_residual(a, max_span: int = 6, end_span: int | None = None):
     ok = np.isfinite(a)
     idx = np.arange(T)
     prev_i, next_i = _observed_neighbours(ok)
-    valid = ok & (prev_i >= 0) & (next_i < T) & (next_i - prev_i <= max_span)
+    valid = _on_a_line(ok, prev_i, next_i, max_span)
     pa = np.take_along_axis(a, np.clip(prev_i, 0, T - 1), -1)
     na = np.take_along_axis(a, np.clip(next_i, 0, T - 1), -1)
     w = (idx - prev_i) / np.maximum(next_i - prev_i, 1)
@@ -554,7 +567,7 @@ def reject_glitches(x, y, noise_m: float, k: float = 4.5, floor_m: float = 0.001
     T = x.shape[-1]
     idx = np.arange(T)
     for _ in range(rounds):
-        dn = np.nan_to_num(np.hypot(_interp_residual(x, span, 6), _interp_residual(y, span, 6)), nan=0.0)
+        dn = np.nan_to_num(_residual_2d(x, y, span), nan=0.0)
         # The neighbourhood: the two observed samples on each side within the span (across a
         # gap, the stray frames a line is drawn through, not the empty frames beside them).
         prev_i, next_i = _observed_neighbours(np.isfinite(x))
@@ -594,8 +607,7 @@ def _end_glitches(x, y, dn, bad, thr, span, prev_i, next_i):
     T = x.shape[-1]
     ok = np.isfinite(x)
     idx = np.arange(T)
-    interior = ok & (prev_i >= 0) & (next_i < T) & (next_i - prev_i <= span)
-    end = ok & ~interior & (dn > thr)
+    end = ok & ~_on_a_line(ok, prev_i, next_i, span) & (dn > thr)
     if not end.any():
         return bad
 
@@ -605,8 +617,7 @@ def _end_glitches(x, y, dn, bad, thr, span, prev_i, next_i):
         return at, at[:-1] + (j[at],)
 
     def explains(cand):  # cand: bool (..., T); whether removing each explains its neighbours
-        xm, ym = np.where(cand, np.nan, x), np.where(cand, np.nan, y)
-        dm = np.hypot(_interp_residual(xm, span, 6), _interp_residual(ym, span, 6))
+        dm = _residual_2d(np.where(cand, np.nan, x), np.where(cand, np.nan, y), span)
         worst, seen = np.zeros(x.shape), np.zeros(x.shape, bool)
         for hop in (prev_i, next_i):
             inside = (hop >= 0) & (hop < T) & (np.abs(hop - idx) <= span)
@@ -616,16 +627,15 @@ def _end_glitches(x, y, dn, bad, thr, span, prev_i, next_i):
             seen |= use
         return cand & seen & (worst <= thr), worst
 
+    pairs = [near(hop, end) for hop in (prev_i, next_i)]  # (end, its neighbour) on each side
     # an end's neighbours that read above the threshold and are not ends themselves
     beside = np.zeros(x.shape, bool)
-    for hop in (prev_i, next_i):
-        _, nb = near(hop, end)
+    for _, nb in pairs:
         beside[nb] = True
     beside &= ~end & (dn > thr)
     (e_ok, e_left), (b_ok, b_left) = explains(end), explains(beside)
     remove, keep = np.zeros(x.shape, bool), np.zeros(x.shape, bool)
-    for hop in (prev_i, next_i):
-        at, nb = near(hop, end)
+    for at, nb in pairs:
         e_x, b_x = e_ok[at], b_ok[nb]
         # where both explain, the one whose removal leaves the smaller residual beside it
         e_only = e_x & (~b_x | (e_left[at] < b_left[nb]))

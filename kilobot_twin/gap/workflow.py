@@ -768,6 +768,12 @@ def gap_by_part(meas, pred_base, pred_final, comps) -> dict:
                 for p in GAP_PARTS} for c in comps}
 
 
+def _tail_count(n: int, level: float) -> int:
+    """How many of ``n`` bootstrap resamples lie beyond each end of a central ``level`` interval
+    (at least 1): the order statistics :func:`shrink_interval` and :func:`removed_interval` share."""
+    return max(int(math.ceil((1 - level) / 2 * n - 1e-9)), 1)
+
+
 def shrink_interval(before: float, after: float, before_boot, after_boot, level: float = 0.95) -> list:
     """Interval for the shrink 1 - after / before, by inverting the bootstrap's test of each ratio:
     a ratio r is in it when after - r before, over the bootstrap resamples, has 0 within its
@@ -781,7 +787,7 @@ def shrink_interval(before: float, after: float, before_boot, after_boot, level:
     b, a = np.asarray(before_boot, dtype=float), np.asarray(after_boot, dtype=float)
     ok = np.isfinite(a) & np.isfinite(b)
     a, b = a[ok], b[ok]
-    k = max(int(math.ceil((1 - level) / 2 * len(a) - 1e-9)), 1)  # resamples needed on each side of 0
+    k = _tail_count(len(a), level)  # resamples needed on each side of 0
 
     def accepted(r):
         d = a[:, None] - np.asarray(r, dtype=float)[None, :] * b[:, None]
@@ -813,7 +819,7 @@ def removed_interval(before_boot, after_boot, level: float = 0.95) -> list:
     d = np.sort((b - a)[np.isfinite(a) & np.isfinite(b)])
     if not len(d):
         return [None, None]
-    k = max(int(math.ceil((1 - level) / 2 * len(d) - 1e-9)), 1)
+    k = _tail_count(len(d), level)
     return [float(d[k - 1]), float(d[len(d) - k])]
 
 
