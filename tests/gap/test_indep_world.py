@@ -209,3 +209,22 @@ def test_the_base_rounds_as_another_worlds_noiseless_sensor(tmp_path):
     ratio = float(np.mean(E.within_var(sim["gain"]))) / E.within_var(gains)
     se = np.sqrt(2.0 / dof * (1 + 1 / gs.m_ref))
     assert abs(np.log(ratio)) < 4 * se, (ratio, dof)
+
+
+def test_robots_that_read_alike_do_not_leave_a_level_gap_on_null_data(tmp_path):
+    """Another world's noiseless sensor on identical robots (no reading noise, no offset spread):
+    every robot rounds the same sweep to the same integers, so a trial's gain and offset are off
+    by one rounding, shared by the swarm, not by one robot's over n. On null data a right model's
+    per trial level is then z^2 of K trials, its excess over 1 within 4 sds (sqrt(2 / K)) of 0,
+    and the report names the shared part. Broken (the level's spread left at 1 / n of a robot's,
+    as before ``workflow.shared_deviation``): 17.0 and 17.7 on this seed (independent light null
+    3296 of the evaluation read 7.2 and 11.0)."""
+    from kilobot_twin.gap.workflow import GapSettings, run_gap
+
+    iw.generate("light_sweep", "none", tmp_path / "d", seed=1, nuisance={"sensor_noise": 0.0, "sensor_offset_trial_sd": 0.0})
+    s = run_gap([str(tmp_path / "d")], tmp_path / "r", gs=GapSettings(seed=1), log=lambda *a: None)["datasets"][0]
+    assert s["named_effects"] == []
+    for c, parts in s["gap_by_part"].items():
+        assert parts["level"][0] < 4 * np.sqrt(2.0 / s["trials"]), (c, parts, s["trials"])
+        assert s["shared_deviation"][c] > 0.5, s["shared_deviation"]
+    assert "share part of their deviation" in (tmp_path / "r" / "report.md").read_text()
