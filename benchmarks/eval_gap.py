@@ -192,6 +192,7 @@ def one(job: dict) -> dict:
             "mde": sec.get("minimum_detectable") or {}, "sizes": realised_sizes(truth), "effect_scale": scale,
             "mde_without_effect": mde_source, "shrink": rep["gap_shrink"], "gap_before": rep["gap_before"]["value"],
             "gap_after": rep["gap_after"]["value"], "nuisances": sec.get("nuisances"),
+            "shared": sec.get("shared_deviation") or {},
             "shape": truth.get("shape") or {"robots": len(truth["robots"])}}
 
 
@@ -275,10 +276,24 @@ def summarise(rows: list, workers_note: str) -> None:
         _naming(rows)
         _recovery(rows)
         _shrink(rows)
+        _shared(rows)
     _mde(rows)
     secs = np.array([r["seconds"] for r in rows])
     print(f"\nrun time of the workflow per dataset: median {np.median(secs):.1f} s, 90th percentile "
           f"{np.percentile(secs, 90):.1f} s, max {secs.max():.1f} s (target <= 60 s; {workers_note})")
+
+
+def _shared(rows):
+    """Where the data's robots share their deviation (report: ``shared_deviation``), which widens the
+    per trial level's spread: a 1 % test, so on worlds whose robots are independent about 1 % of
+    datasets."""
+    have = [r for r in rows if "shared" in r]
+    if not have:
+        return
+    hit = [r for r in have if any(v > 0 for v in r["shared"].values())]
+    print(f"\nrobots that share their deviation (the level's spread widened): {len(hit)} of {len(have)} datasets"
+          + "".join(f"\n  {r['case']} {r['seed']}: " + ", ".join(f"{c} {v:.2f}" for c, v in r["shared"].items() if v > 0)
+                    for r in hit))
 
 
 def _naming(rows):
