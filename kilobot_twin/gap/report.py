@@ -41,13 +41,14 @@ def _where(s: dict) -> list:
              "| summary | " + " | ".join(GAP_PARTS.values()) + " |", "|---" * (len(GAP_PARTS) + 1) + "|"]
     for c, parts in by.items():
         lines.append(f"| {c} | " + " | ".join(f"{parts[p][0]:.2f} -> {parts[p][1]:.2f}" for p in GAP_PARTS) + " |")
-    shared = {c: r for c, r in (s.get("shared_deviation") or {}).items() if r > 0}
+    shared = {c: (r, (s.get("shared_rounding_sd") or {}).get(c, 0.0)) for c, r in (s.get("shared_deviation") or {}).items() if r > 0}
     if shared:
         lines += ["", "The robots of a trial lie closer together than the model's independent robots would: they "
-                  "share part of their deviation (" + ", ".join(f"{c} {r:.2f}" for c, r in shared.items())
-                  + " of it; the same rounding of the same signal, clocks started together), so a trial's mean "
-                  "over robots varies more than 1 / n of one robot's, and its level's spread is widened by "
-                  "1 + (n - 1) x that share."]
+                  "share part of their deviation (" + ", ".join(f"{c} {r:.2f}" for c, (r, _) in shared.items())
+                  + " of it). The per trial level's spread takes what of it the robots' rounding can share (the "
+                  "same integers of the same sweep, clocks that toggle on the same frames): sd "
+                  + ", ".join(f"{c} {_fmt(sd)}" for c, (_, sd) in shared.items())
+                  + ". A larger shared part, a swarm-wide shift from trial to trial, stays in the gap."]
     lo = s["gap_before"]["ci95"][0]
     if not s["disagreements"] and lo is not None and lo > 0:
         c, p = max(((c, p) for c in by for p in GAP_PARTS), key=lambda cp: by[cp[0]][cp[1]][0])

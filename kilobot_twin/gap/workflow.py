@@ -480,6 +480,7 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
     with ThreadPoolExecutor(max(1, fitter.gs.threads)) as pool:
         folds = list(pool.map(fold, range(K)))
     kept = {c: [] for c in comps}  # each fold's replicates kept, for the robots' shared deviation
+    spread = {c: np.full(K, np.nan) for c in comps}  # ... and a robot's simulated variance in each
     for k, (model, sims) in enumerate(folds):
         train = train_of(k)
         for c in comps:
@@ -523,19 +524,32 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             h_level = h_level + (float(np.mean(mc[reps > 0])) if (reps > 0).any() else 0.0)
             pred[c]["sd"][k] = np.sqrt(np.maximum(var_i, floor) * (1 + h_track))
             pred[c]["sd_level"][k] = np.sqrt(max(pooled, floor) * (1 + h_level))
+            spread[c][k] = max(pooled, floor)
     # A trial's level is a mean over robots whose deviations the model draws independently. Where
     # the data's robots lie far closer together within a trial than independent robots would,
-    # they share their deviation (the same ADC rounding of the same sweep, clocks started
-    # together): their mean varies as one robot does, not as 1 / n of it, and the level's spread
-    # is widened by the design effect 1 + (n - 1) rho (rho: :func:`shared_deviation`).
-    # Independent light null 3296 (no sensor noise, identical robots: 31 robots read the same
-    # integers) read per trial level deviances of 7.2 and 11.0 with it at 1.
+    # they may share their rounding: robots that read the same sweep without noise round it to
+    # the same integers, aligned clocks' toggles fall on the same frames. Their mean then varies
+    # by that shared rounding, not by 1 / n of one robot's: independent light null 3296 (no
+    # sensor noise, identical robots, 31 robots on the same integers) read per trial level
+    # deviances of 7.2 and 11.0 on null data. The level's variance takes the shared part
+    # rho x a robot's variance (:func:`shared_deviation`) for every robot but one's share, at most
+    # a robot's rounding variance (the summary's ``_floor``): a swarm-wide shift from trial to
+    # trial (the light's level, the floor) is a disagreement, larger than rounding, and stays in
+    # the gap. Summaries read without rounding (motion) have no such part.
     rng = np.random.default_rng(child_seed(fitter.gs.seed, "shared"))
     for c in comps:
         rho = shared_deviation(fitter.meas[c] - pred[c]["mean"], kept[c], pred[c]["mean"], rng)
+        rounding = fitter.meas.get(c + "_floor")
+        shared = np.zeros(K)
+        if rho > 0 and rounding is not None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # a trial no robot was seen in
+                r = np.nanmean(np.asarray(rounding, dtype=float), axis=1)
+            shared = np.nan_to_num(np.minimum(rho * spread[c], r))
         seen = np.isfinite(fitter.meas[c]).sum(axis=1)
-        pred[c]["sd_level"] = pred[c]["sd_level"] * np.sqrt(1.0 + np.maximum(seen - 1, 0) * rho)
+        pred[c]["sd_level"] = np.sqrt(pred[c]["sd_level"] ** 2 + np.maximum(seen - 1, 0) * shared)
         pred[c]["shared"] = rho
+        pred[c]["shared_sd"] = float(np.sqrt(np.mean(shared)))
     return pred
 
 
@@ -1193,8 +1207,10 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         "gap_shrink": shrink_doc,
         "gap_by_part": gap_by_part(meas, pred_base, pred_final, comps),
         # per summary: the share of a robot's held-out deviation its trial's robots have in common
-        # (0 unless the data show it), which widens the per trial level's spread (shared_deviation)
+        # (0 unless the data show it; shared_deviation), and the sd of what of it, at most the
+        # rounding, the per trial level's spread takes as shared (see _heldout)
         "shared_deviation": {c: float(pred_final[c]["shared"]) for c in comps},
+        "shared_rounding_sd": {c: pred_final[c]["shared_sd"] for c in comps},
         "tests": tests,  # the detection's statistics (round 0), flagged or not
         "nuisances": _nuisances(fitter.fit((), all_trials), cond) if fit_base else {},
         # Per-robot estimates of the named effects' traits: ``individual`` (in model.yaml: the

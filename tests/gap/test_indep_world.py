@@ -227,4 +227,32 @@ def test_robots_that_read_alike_do_not_leave_a_level_gap_on_null_data(tmp_path):
     for c, parts in s["gap_by_part"].items():
         assert parts["level"][0] < 4 * np.sqrt(2.0 / s["trials"]), (c, parts, s["trials"])
         assert s["shared_deviation"][c] > 0.5, s["shared_deviation"]
+        assert s["shared_rounding_sd"][c] > 0, s["shared_rounding_sd"]
     assert "share part of their deviation" in (tmp_path / "r" / "report.md").read_text()
+
+
+def test_a_swarm_wide_shift_from_trial_to_trial_stays_in_the_level_gap(tmp_path):
+    """The light's level shifting every robot's readings alike from trial to trial (+8 counts,
+    -8, ..., written into another world's noisy null sweeps here) is a disagreement the library
+    has no effect for: the robots share that deviation too, but it is far larger than the ADC's
+    rounding, and the per trial level of the offset must show it (above 4 sds, sqrt(2 / K), of a
+    right model's), as before the shared rounding was let into the level's spread. Broken (the
+    shared part not bounded by the rounding): the level reads about 0 and this fails."""
+    import csv
+
+    from kilobot_twin.gap.workflow import GapSettings, run_gap
+
+    d = tmp_path / "d"
+    iw.generate("light_sweep", "none", d, seed=7, nuisance={"sensor_noise": 8.0, "sensor_offset_trial_sd": 4.0})
+    with open(d / "observations.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        shifted = float(r["reading"]) + (8.0 if int(r["trial"]) % 2 == 0 else -8.0)
+        r["reading"] = str(int(np.clip(shifted, 0, 1023)))
+    with open(d / "observations.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    s = run_gap([str(d)], tmp_path / "r", gs=GapSettings(seed=7), log=lambda *a: None)["datasets"][0]
+    assert s["named_effects"] == []
+    assert s["gap_by_part"]["offset"]["level"][0] > 4 * np.sqrt(2.0 / s["trials"]), s["gap_by_part"]
