@@ -45,10 +45,13 @@ def _where(s: dict) -> list:
     if shared:
         lines += ["", "The robots of a trial lie closer together than the model's independent robots would: they "
                   "share part of their deviation (" + ", ".join(f"{c} {r:.2f}" for c, (r, _) in shared.items())
-                  + " of it). The per trial level's spread takes what of it the robots' rounding can share (the "
-                  "same integers of the same sweep, clocks that toggle on the same frames): sd "
-                  + ", ".join(f"{c} {_fmt(sd)}" for c, (_, sd) in shared.items())
-                  + ". A larger shared part, a swarm-wide shift from trial to trial, stays in the gap."]
+                  + " of it). "
+                  + ("The sensor's reading noise is too small to dither the ADC's rounding, so robots reading the "
+                     "same sweep round it alike: the per trial level's spread takes that shared part (sd "
+                     + ", ".join(f"{c} {_fmt(sd)}" for c, (_, sd) in shared.items()) + ")."
+                     if any(sd > 0 for _, sd in shared.values()) else
+                     "No rounding is shared here (the noise dithers it, or nothing is rounded): what the robots "
+                     "share stays in the gap, or their model's spread is wider than theirs.")]
     lo = s["gap_before"]["ci95"][0]
     if not s["disagreements"] and lo is not None and lo > 0:
         c, p = max(((c, p) for c in by for p in GAP_PARTS), key=lambda cp: by[cp[0]][cp[1]][0])

@@ -525,32 +525,45 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             pred[c]["sd"][k] = np.sqrt(np.maximum(var_i, floor) * (1 + h_track))
             pred[c]["sd_level"][k] = np.sqrt(max(pooled, floor) * (1 + h_level))
             spread[c][k] = max(pooled, floor)
-    # A trial's level is a mean over robots whose deviations the model draws independently. Where
-    # the data's robots lie far closer together within a trial than independent robots would,
-    # they may share their rounding: robots that read the same sweep without noise round it to
-    # the same integers, aligned clocks' toggles fall on the same frames. Their mean then varies
-    # by that shared rounding, not by 1 / n of one robot's: independent light null 3296 (no
-    # sensor noise, identical robots, 31 robots on the same integers) read per trial level
-    # deviances of 7.2 and 11.0 on null data. The level's variance takes the shared part
-    # rho x a robot's variance (:func:`shared_deviation`) for every robot but one's share, at most
-    # a robot's rounding variance (the summary's ``_floor``): a swarm-wide shift from trial to
-    # trial (the light's level, the floor) is a disagreement, larger than rounding, and stays in
-    # the gap. Summaries read without rounding (motion) have no such part.
+    # A trial's level is a mean over robots whose deviations the model draws independently. A
+    # sensor whose reading noise is too small to dither the ADC's rounding (below
+    # :data:`DITHER_COUNTS`) rounds a smooth sweep by a function of the sweep itself: robots
+    # reading the same sweep round it alike, and their mean varies by that shared rounding, not by
+    # 1 / n of one robot's. Independent light null 3296 (no sensor noise, identical robots: 31
+    # robots on the same integers) read per trial level deviances of 7.2 and 11.0 on null data.
+    # There the level's variance takes the part rho of a robot's variance that the data's robots
+    # share (:func:`shared_deviation`) for every robot but one. Where the noise dithers the
+    # rounding, nothing is shared by rounding, and what the robots of a trial share (the light's
+    # level shifting from trial to trial) is a disagreement that stays in the gap.
     rng = np.random.default_rng(child_seed(fitter.gs.seed, "shared"))
+    undithered = kind == "light_sweep" and data_reading_noise(fitter.meas) < DITHER_COUNTS
     for c in comps:
         rho = shared_deviation(fitter.meas[c] - pred[c]["mean"], kept[c], pred[c]["mean"], rng)
-        rounding = fitter.meas.get(c + "_floor")
-        shared = np.zeros(K)
-        if rho > 0 and rounding is not None:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)  # a trial no robot was seen in
-                r = np.nanmean(np.asarray(rounding, dtype=float), axis=1)
-            shared = np.nan_to_num(np.minimum(rho * spread[c], r))
+        shared = np.nan_to_num(rho * spread[c]) if undithered else np.zeros(K)
         seen = np.isfinite(fitter.meas[c]).sum(axis=1)
         pred[c]["sd_level"] = np.sqrt(pred[c]["sd_level"] ** 2 + np.maximum(seen - 1, 0) * shared)
         pred[c]["shared"] = rho
         pred[c]["shared_sd"] = float(np.sqrt(np.mean(shared)))
     return pred
+
+
+#: The reading noise (counts, sd) that dithers an ADC's rounding: with Gaussian noise of sd s, a
+#: rounded reading's mean error follows the signal by at most exp(-2 pi^2 s^2) / pi counts (the
+#: rounding's Fourier series; 0.002 at 0.5 counts, 0.09 at 0.25), so below it robots that read the
+#: same sweep round it alike.
+DITHER_COUNTS = 0.5
+
+
+def data_reading_noise(meas) -> float:
+    """The light sensor's reading noise (counts, sd) as the data show it, beyond the ADC's rounding:
+    the typical track's scatter about its line (``residual_sd``, median over tracks) less the
+    rounding's 1/12 in variance. Read off the data, not the base's fit: the base's noise fitted
+    to noiseless sweeps of another world can read 0.56 counts where the data scatter by 0.294
+    (rounding alone: 0.289; indep_world seed 108 without sensor noise)."""
+    sd = np.asarray(meas["residual_sd"], dtype=float)
+    if not np.isfinite(sd).any():
+        return math.inf
+    return math.sqrt(max(float(np.nanmedian(sd**2)) - E.ADC_ROUNDING_VAR, 0.0))
 
 
 #: One-sided level at which the data's robots are taken to share their deviations
@@ -1207,8 +1220,8 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         "gap_shrink": shrink_doc,
         "gap_by_part": gap_by_part(meas, pred_base, pred_final, comps),
         # per summary: the share of a robot's held-out deviation its trial's robots have in common
-        # (0 unless the data show it; shared_deviation), and the sd of what of it, at most the
-        # rounding, the per trial level's spread takes as shared (see _heldout)
+        # (0 unless the data show it; shared_deviation), and the sd of what of it the per trial
+        # level's spread takes as shared: only rounding that no noise dithers (see _heldout)
         "shared_deviation": {c: float(pred_final[c]["shared"]) for c in comps},
         "shared_rounding_sd": {c: pred_final[c]["shared_sd"] for c in comps},
         "tests": tests,  # the detection's statistics (round 0), flagged or not

@@ -214,14 +214,16 @@ def test_the_base_rounds_as_another_worlds_noiseless_sensor(tmp_path):
 def test_robots_that_read_alike_do_not_leave_a_level_gap_on_null_data(tmp_path):
     """Another world's noiseless sensor on identical robots (no reading noise, no offset spread):
     every robot rounds the same sweep to the same integers, so a trial's gain and offset are off
-    by one rounding, shared by the swarm, not by one robot's over n. On null data a right model's
-    per trial level is then z^2 of K trials, its excess over 1 within 4 sds (sqrt(2 / K)) of 0,
-    and the report names the shared part. Broken (the level's spread left at 1 / n of a robot's,
-    as before ``workflow.shared_deviation``): 17.0 and 17.7 on this seed (independent light null
-    3296 of the evaluation read 7.2 and 11.0)."""
-    from kilobot_twin.gap.workflow import GapSettings, run_gap
+    by one rounding, shared by the swarm, not by one robot's over n. The data show no reading
+    noise beyond the rounding (below 0.1 counts: the world has none), too little to dither it. On
+    null data a right model's per trial level is then z^2 of K trials, its excess over 1 within
+    4 sds (sqrt(2 / K)) of 0, and the report names the shared part. Broken (the level's spread
+    left at 1 / n of a robot's, as before ``workflow.shared_deviation``): 17.0 and 17.7 on this
+    seed (independent light null 3296 of the evaluation read 7.2 and 11.0)."""
+    from kilobot_twin.gap.workflow import GapSettings, data_reading_noise, run_gap
 
     iw.generate("light_sweep", "none", tmp_path / "d", seed=1, nuisance={"sensor_noise": 0.0, "sensor_offset_trial_sd": 0.0})
+    assert data_reading_noise(measured_summaries(measured.load(tmp_path / "d"))[1]) < 0.1
     s = run_gap([str(tmp_path / "d")], tmp_path / "r", gs=GapSettings(seed=1), log=lambda *a: None)["datasets"][0]
     assert s["named_effects"] == []
     for c, parts in s["gap_by_part"].items():
@@ -234,13 +236,14 @@ def test_robots_that_read_alike_do_not_leave_a_level_gap_on_null_data(tmp_path):
 def test_a_swarm_wide_shift_from_trial_to_trial_stays_in_the_level_gap(tmp_path):
     """The light's level shifting every robot's readings alike from trial to trial (+8 counts,
     -8, ..., written into another world's noisy null sweeps here) is a disagreement the library
-    has no effect for: the robots share that deviation too, but it is far larger than the ADC's
-    rounding, and the per trial level of the offset must show it (above 4 sds, sqrt(2 / K), of a
-    right model's), as before the shared rounding was let into the level's spread. Broken (the
-    shared part not bounded by the rounding): the level reads about 0 and this fails."""
+    has no effect for. The robots share that deviation too, but their reading noise (the world's
+    8 counts, read off the data within 10 %) dithers the ADC's rounding, so none of it is shared
+    rounding, and the per trial level of the offset must show it (above 4 sds, sqrt(2 / K), of
+    a right model's), as before the shared rounding was let into the level's spread. Broken (the
+    shared part taken whatever the noise): the level reads 0.18 and this fails."""
     import csv
 
-    from kilobot_twin.gap.workflow import GapSettings, run_gap
+    from kilobot_twin.gap.workflow import GapSettings, data_reading_noise, run_gap
 
     d = tmp_path / "d"
     iw.generate("light_sweep", "none", d, seed=7, nuisance={"sensor_noise": 8.0, "sensor_offset_trial_sd": 4.0})
@@ -253,6 +256,7 @@ def test_a_swarm_wide_shift_from_trial_to_trial_stays_in_the_level_gap(tmp_path)
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
+    assert abs(data_reading_noise(measured_summaries(measured.load(d))[1]) / 8.0 - 1) < 0.1
     s = run_gap([str(d)], tmp_path / "r", gs=GapSettings(seed=7), log=lambda *a: None)["datasets"][0]
     assert s["named_effects"] == []
     assert s["gap_by_part"]["offset"]["level"][0] > 4 * np.sqrt(2.0 / s["trials"]), s["gap_by_part"]
