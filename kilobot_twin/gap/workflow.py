@@ -585,7 +585,8 @@ def shared_deviation(resid, reps, mu, rng: np.random.Generator, alpha: float = S
     (``draws`` draws, each robot's replicate chosen at random for every trial, pooled as the data
     are). Where W is below those draws' ``alpha`` quantile (independent robots do that in
     ``alpha`` of datasets), rho is 1 - W / (their mean); otherwise 0. Not the lower confidence
-    bound: at rho = 0.5 on 30 robots x 5 trials that bound (0.32) left the level's z^2 at 1.5.
+    bound: at rho = 0.5 on 30 robots x 5 trials that bound (about 0.32) left the level's z^2 at
+    1.65.
     Robots that differ more than the model says only raise W: never a shared deviation. A small
     shared part on many robots (rho 0.1 on 30: a design effect of 3.9) is below what W resolves
     (its relative sd sqrt(2 / dof)) and is missed."""
