@@ -503,6 +503,13 @@ def _on_a_line(ok, prev_i, next_i, max_span: int):
     return ok & (prev_i >= 0) & (next_i < T) & (next_i - prev_i <= max_span)
 
 
+def _within_span(j, span: int):
+    """Whether index j (..., T) (-1 or T: none) is a sample of the track within ``span`` frames
+    of the sample it is read for."""
+    T = j.shape[-1]
+    return (j >= 0) & (j < T) & (np.abs(j - np.arange(T)) <= span)
+
+
 def _residual_2d(x, y, span: int):
     """Distance of each sample from the line (or, at an end, the extrapolation within 6 frames)
     through its observed neighbours (:func:`_interp_residual` of both coordinates)."""
@@ -532,7 +539,7 @@ def _interp_residual(a, max_span: int = 6, end_span: int | None = None):
         inside = (near >= 0) & (near < T)
         n1 = np.clip(near, 0, T - 1)
         n2 = np.take_along_axis(far_of, n1, -1)
-        ok2 = ok & inside & (n2 >= 0) & (n2 < T) & (np.abs(n2 - idx) <= end_span) & np.isnan(out)
+        ok2 = ok & inside & _within_span(n2, end_span) & np.isnan(out)
         a1 = np.take_along_axis(a, n1, -1)
         a2 = np.take_along_axis(a, np.clip(n2, 0, T - 1), -1)
         d1, d2 = (idx - n1), (n1 - n2)
@@ -565,7 +572,6 @@ def reject_glitches(x, y, noise_m: float, k: float = 4.5, floor_m: float = 0.001
     total = 0
     span = max(int(round(GLITCH_SPAN_S / dt_s)) if dt_s else 6, 6)
     T = x.shape[-1]
-    idx = np.arange(T)
     for _ in range(rounds):
         dn = np.nan_to_num(_residual_2d(x, y, span), nan=0.0)
         # The neighbourhood: the two observed samples on each side within the span (across a
@@ -575,7 +581,7 @@ def reject_glitches(x, y, noise_m: float, k: float = 4.5, floor_m: float = 0.001
         for hop, none in ((prev_i, -1), (next_i, T)):
             j = hop
             for _hop in range(2):
-                inside = (j >= 0) & (j < T) & (np.abs(j - idx) <= span)
+                inside = _within_span(j, span)
                 jc = np.clip(j, 0, T - 1)
                 near.append(np.where(inside, np.take_along_axis(dn, jc, -1), 0.0))
                 j = np.where(inside, np.take_along_axis(hop, jc, -1), none)
@@ -606,13 +612,12 @@ def _end_glitches(x, y, dn, bad, thr, span, prev_i, next_i):
     :func:`reject_glitches` stands."""
     T = x.shape[-1]
     ok = np.isfinite(x)
-    idx = np.arange(T)
     end = ok & ~_on_a_line(ok, prev_i, next_i, span) & (dn > thr)
     if not end.any():
         return bad
 
     def near(hop, where):  # each marked sample's neighbour on one side: (rows, columns) pairs
-        j = np.where(where & (hop >= 0) & (hop < T) & (np.abs(hop - idx) <= span), hop, -1)
+        j = np.where(where & _within_span(hop, span), hop, -1)
         at = np.nonzero(j >= 0)
         return at, at[:-1] + (j[at],)
 
@@ -620,7 +625,7 @@ def _end_glitches(x, y, dn, bad, thr, span, prev_i, next_i):
         dm = _residual_2d(np.where(cand, np.nan, x), np.where(cand, np.nan, y), span)
         worst, seen = np.zeros(x.shape), np.zeros(x.shape, bool)
         for hop in (prev_i, next_i):
-            inside = (hop >= 0) & (hop < T) & (np.abs(hop - idx) <= span)
+            inside = _within_span(hop, span)
             r = np.take_along_axis(dm, np.clip(hop, 0, T - 1), -1)
             use = inside & np.isfinite(r)
             worst = np.where(use, np.maximum(worst, r), worst)

@@ -523,8 +523,8 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             h_track = h_track + mc
             h_level = h_level + (float(np.mean(mc[reps > 0])) if (reps > 0).any() else 0.0)
             pred[c]["sd"][k] = np.sqrt(np.maximum(var_i, floor) * (1 + h_track))
-            pred[c]["sd_level"][k] = np.sqrt(max(pooled, floor) * (1 + h_level))
             spread[c][k] = max(pooled, floor)
+            pred[c]["sd_level"][k] = np.sqrt(spread[c][k] * (1 + h_level))
     # A trial's level is a mean over robots whose deviations the model draws independently. A
     # sensor whose reading noise is too small to dither the ADC's rounding (below
     # :data:`DITHER_COUNTS`) rounds a smooth sweep by a function of the sweep itself: robots
