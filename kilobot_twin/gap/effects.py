@@ -54,12 +54,21 @@ class TwinModel:
     #: trait -> the expected correlation of its ``individual`` estimates with the robots' true
     #: values (see :meth:`with_individual`)
     expected_r: dict = field(default_factory=dict)
+    #: Fields of the core's scenario (:class:`kilobot_twin.core.scenario.Scenario`, as a scenario
+    #: file spells them) that fitted effects set for the whole swarm, e.g. a tilted floor's
+    #: ``floor_tilt`` and ``floor_tilt_direction_rad``. Every simulation of the model runs under
+    #: them (:func:`kilobot_twin.gap.model.simulate`), whichever effect is named after.
+    scenario: dict = field(default_factory=dict)
 
-    def with_traits(self, speed_trial_sd: float | None = None, frame_lead: str | None = None, **arrays) -> "TwinModel":
+    def with_traits(self, speed_trial_sd: float | None = None, frame_lead: str | None = None,
+                    scenario: dict | None = None, **arrays) -> "TwinModel":
+        """A copy with these per-robot ``arrays`` of traits, and ``scenario`` fields added to the
+        model's (see ``scenario``)."""
         sts = self.speed_trial_sd if speed_trial_sd is None else float(speed_trial_sd)
         return TwinModel(self.kind, self.swarm.with_values(**arrays), list(self.named), sts, dict(self.pooling),
                          dict(self.slope_pooling), dict(self.noise_map), frame_lead or self.frame_lead,
-                         self.forward_speed_m_s, dict(self.individual), dict(self.expected_r))
+                         self.forward_speed_m_s, dict(self.individual), dict(self.expected_r),
+                         {**self.scenario, **(scenario or {})})
 
     def with_individual(self, weights: dict, **arrays) -> "TwinModel":
         """The same model, with these traits' spread-keeping per-robot estimates (see ``individual``).
@@ -1488,3 +1497,61 @@ def _trial_index(meas):
 
 LIBRARY: dict[str, Effect] = {e.name: e for e in (HeadingBias(), SpeedHeterogeneity(), BiasDrift(), MotionNoise(),
                                                  SensorGain(), ClockDrift())}
+
+#: The kinds of data an effect can explain (``Effect.kind``).
+KINDS = ("motion", "light_sweep", "blink")
+
+
+def load_effects(path: str, taken=()) -> dict:
+    """A user's own effects: every concrete :class:`Effect` subclass a Python file defines (not
+    one it imports), made without arguments, by name. ``taken``: names already in use (the
+    library's, other files'). Each problem is one :class:`ConfigError` naming ``--effects``, the
+    file and the fix; the file is run as a module, once."""
+    import importlib.util
+    import inspect
+    import traceback
+    from pathlib import Path
+
+    from ..errors import ConfigError
+
+    p = Path(path)
+    if p.suffix != ".py" or not p.is_file():
+        raise ConfigError("--effects", f"{path} is not a Python file", "give the path of a .py file that defines Effect subclasses")
+    spec = importlib.util.spec_from_file_location(f"kilobot_twin_user_effects_{abs(hash(str(p.resolve())))}", p)
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:  # the user's code: one line, where in their file it failed
+        lines = [f.lineno for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename) == p]
+        if isinstance(exc, SyntaxError) and exc.lineno:
+            lines = [exc.lineno]
+        at = f" at line {lines[-1]}" if lines else ""
+        raise ConfigError("--effects", f"{path} failed to load{at}: {type(exc).__name__}: {exc}", "fix the file") from None
+    found = {}
+    for _, cls in inspect.getmembers(module, inspect.isclass):
+        if not issubclass(cls, Effect) or cls.__module__ != module.__name__:
+            continue
+        if inspect.isabstract(cls):
+            missing = ", ".join(sorted(cls.__abstractmethods__))
+            raise ConfigError("--effects", f"{path}: {cls.__name__} does not define {missing}", "write its fit(model, meas, ref, resim)")
+        try:
+            e = cls()
+        except Exception as exc:
+            raise ConfigError("--effects", f"{path}: {cls.__name__}() failed: {type(exc).__name__}: {exc}",
+                              "an effect is made without arguments") from None
+        where = f"{path}: {cls.__name__}"
+        if not isinstance(e.name, str) or not e.name:
+            raise ConfigError("--effects", f"{where} has no name", "set name = \"...\" in the class")
+        if e.kind not in KINDS:
+            raise ConfigError("--effects", f"{where}: kind {e.kind!r} is not one of {', '.join(KINDS)}",
+                              "set kind to the data it explains")
+        if e.name in taken or e.name in found:
+            raise ConfigError("--effects", f"{where}: the name {e.name!r} is taken", "give the effect a name of its own")
+        if not e.predicts and type(e).explains is Effect.explains:
+            raise ConfigError("--effects", f"{where} predicts no summary, so it can account for no disagreement",
+                              "set predicts (e.g. {\"speed\": \"pop\"}) or define explains(signal)")
+        found[e.name] = e
+    if not found:
+        raise ConfigError("--effects", f"{path} defines no Effect subclass",
+                          "subclass kilobot_twin.gap.effects.Effect in that file")
+    return found

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..batch import engine
 from ..core import sim
+from ..core.scenario import with_overrides
 from ..core.traits import SwarmTraits
 from ..recording import measured
 from . import observe, summaries, synth
@@ -211,17 +212,24 @@ def _start_poses(x, y, dt_s, lag_s=2.0):
     return x0, y0, th0
 
 
-def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt=None) -> dict:
+#: where a scenario field that an effect fitted came from, for its error message
+_FITTED = "the model's fitted scenario (TwinModel.scenario)"
+
+
+def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None) -> dict:
     """M replicates of the swarm under the conditions; summaries shaped (M, K', N).
 
     ``swarm`` is a :class:`SwarmTraits` or a model carrying one (``.swarm``) and population
     nuisances the core does not model (``.speed_trial_sd``: a robot's speed jitters from trial
-    to trial by this relative sd; applied by scaling each track's displacement from its start).
+    to trial by this relative sd; applied by scaling each track's displacement from its start),
+    and the scenario's fields that fitted effects set (``.scenario``: dotted keys of a scenario
+    file, e.g. ``floor_tilt``), applied over the kind's scenario and checked as a scenario file is.
     ``trials`` restricts to a subset of trial indices (K' of them). Replicate m of trial k is
     global run ``m * K + k`` so that replicates are independent and reproducible.
     """
     speed_trial_sd = float(getattr(swarm, "speed_trial_sd", 0.0))
     frame_lead = getattr(swarm, "frame_lead", "aligned")
+    fitted = dict(getattr(swarm, "scenario", None) or {})
     swarm = getattr(swarm, "swarm", swarm)
     trials = np.arange(cond.trials) if trials is None else np.asarray(trials)
     Kp = len(trials)
@@ -230,7 +238,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(11, int(runs[0]), len(runs))))
     mask = np.tile(cond.observed[trials], (M, 1, 1))  # (M*K', N, T)
     if cond.kind == "motion":
-        sc = synth.motion_scenario(cond.duration_s, cond.dt_s, floor_tilt, cond.forward_speed_m_s)
+        sc = with_overrides(synth.motion_scenario(cond.duration_s, cond.dt_s, None, cond.forward_speed_m_s), fitted, _FITTED)
         x0, y0, th0 = (np.tile(a[trials], (M, 1)) for a in cond.start)
         res = engine.simulate(sc, swarm, seed, runs=runs, trials=trial_idx, record_every=1, poses=(x0, y0, th0),
                               threads=THREADS, channels=("x", "y"))
@@ -259,7 +267,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
         s = summaries.motion(*tracks, cond.dt_s, wander_lags_s=summaries.wander_lags(total_tracking_noise(cond)),
                               threads=THREADS)
     elif cond.kind == "light_sweep":
-        sc = synth.light_scenario(cond.duration_s, cond.dt_s, cond.sensor_knee)
+        sc = with_overrides(synth.light_scenario(cond.duration_s, cond.dt_s, cond.sensor_knee), fitted, _FITTED)
         T = mask.shape[-1]
         if cond.stimulus is None:
             stim = np.broadcast_to(sc.light.v_value(np.arange(T) * cond.dt_s), mask.shape)
@@ -268,7 +276,7 @@ def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None, floor_tilt
         reading = sweep_readings(sc, swarm, seed, runs, trial_idx, stim)
         s = summaries.light_sweep(np.where(mask, stim, np.nan), np.where(mask, reading, np.nan))
     else:
-        sc = synth.blink_scenario(cond.duration_s, cond.dt_s, cond.half_period_ticks, cond.tick_hz)
+        sc = with_overrides(synth.blink_scenario(cond.duration_s, cond.dt_s, cond.half_period_ticks, cond.tick_hz), fitted, _FITTED)
         T = mask.shape[-1]
         # Robots started apart from a free-running camera (``frame_lead`` random): each track
         # starts at a uniform point of the robot's LED cycle, so the timing error differs between

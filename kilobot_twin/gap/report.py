@@ -135,6 +135,9 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
                       "more trials raise it):"]
             for trait, v in s["estimates"].items():
                 lines.append(f"- {trait}: expected r {v['expected_r']:.2f}")
+        if s.get("scenario"):
+            lines += ["", "Scenario fields the named effects fitted for the whole swarm (keys of a scenario file, "
+                      "e.g. for `kilobot-twin run`): " + ", ".join(f"`{k}` {_fmt(v)}" for k, v in s["scenario"].items())]
         lines += ["", "Nuisances fitted by the base model: " + ", ".join(f"{k} {_fmt(v)}" for k, v in s.get("nuisances", {}).items()), ""]
         fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
         res = residuals[j]

@@ -1235,6 +1235,9 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         "estimates": {k: {"individual": [float(x) for x in v], "predictive": [float(x) for x in final.swarm.values[k]],
                           "expected_r": final.expected_r[k]}
                       for k, v in final.individual.items()},
+        # scenario fields the named effects fitted for the whole swarm (TwinModel.scenario), as a
+        # scenario file spells them: a user's own effect's tilted floor, for instance
+        "scenario": dict(final.scenario),
         "minimum_detectable": mde,
         "tracked_point": (tracked_point_offset(meas, final)
                           if kind == "motion" and "speed_heterogeneity" in names else None),
