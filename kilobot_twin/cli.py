@@ -94,14 +94,33 @@ def synth(kind: str, hidden: str, out: str, robots: int | None = None, trials: i
                   effect_scale=effect_scale)
 
 
-def gap(data: list[str], out: str, model: str | None = None, seed: int = 0, quiet: bool = False) -> dict:
-    """Hold the twin against measured data: detect, name, add, show the gap shrink."""
+def gap(data: list[str], out: str, model: str | None = None, seed: int = 0, quiet: bool = False,
+        effects: list[str] | None = None) -> dict:
+    """Hold the twin against measured data: detect, name, add, show the gap shrink. ``effects``:
+    Python files whose Effect subclasses join the library's candidates."""
+    import traceback
+
+    from .gap.effects import LIBRARY, load_effects
     from .gap.workflow import GapSettings, run_gap
 
     check_out_dir(out)
     if any(Path(out).absolute() == Path(d).absolute() for d in data):
         raise ConfigError("--out", f"{out} is one of the data folders", "give a separate folder for the report")
-    return run_gap(data, out, model, GapSettings(seed=seed), log=(lambda *a: None) if quiet else print)
+    library = dict(LIBRARY)
+    for f in effects or []:
+        library.update(load_effects(f, taken=library))
+    try:
+        return run_gap(data, out, model, GapSettings(seed=seed, library=library), log=(lambda *a: None) if quiet else print)
+    except ConfigError:
+        raise
+    except Exception as exc:  # raised in a user's effect: one line, where in their file
+        mine = [(f, fr) for f in effects or [] for fr in traceback.extract_tb(exc.__traceback__)
+                if Path(fr.filename).resolve() == Path(f).resolve()]
+        if not mine:
+            raise
+        f, fr = mine[-1]
+        raise ConfigError("--effects", f"{f} line {fr.lineno} ({fr.name}) raised {type(exc).__name__}: {exc}",
+                          "fix the effect") from None
 
 
 def demo(out: str = "out/demo", quick: bool = False, workers: int | None = None, progress: bool = True) -> dict:
@@ -250,6 +269,9 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--model", help="base model (traits YAML with robots:); default: the paper's Eq. 4 fitted to the data")
     g.add_argument("--out", required=True)
     g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--effects", action="append", metavar="FILE.py",
+                   help="a Python file of your own effects (Effect subclasses) to add to the library's candidates; "
+                        "repeatable (see docs/examples/floor_tilt.py)")
     g.add_argument("--quiet", action="store_true")
 
     t = sub.add_parser("traits", help="draw or check robot traits files")
@@ -423,7 +445,7 @@ def _main(argv=None, caught=()) -> int:
                           args.effect_scale)
             print(f"wrote {args.out} ({truth['kind']}, hidden: {', '.join(truth['hidden']) or 'none'})")
         elif args.verb == "gap":
-            rep = gap(args.data, args.out, args.model, args.seed, args.quiet)
+            rep = gap(args.data, args.out, args.model, args.seed, args.quiet, args.effects)
             print(f"named: {', '.join(rep['named_effects']) or 'none'}; unexplained: {rep['unexplained']}"
                   + (f" ({', '.join(rep['unexplained_signals'])})" if rep["unexplained_signals"] else ""))
             print(f"gap {rep['gap_before']['value']:.2f} -> {rep['gap_after']['value']:.2f}; report: {args.out}/report.md")
