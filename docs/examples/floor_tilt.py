@@ -77,14 +77,16 @@ class FloorTilt(Effect):
         m = model.with_traits(scenario={"floor_tilt": min(amp, 0.9), "floor_tilt_direction_rad": phi})
         if resim is None:
             return m
+        if noise is not None:  # a fold: the noise levels of the fit on all trials
+            sw = noise.swarm
+            m = m.with_traits(speed_trial_sd=noise.speed_trial_sd, sigma_omega=sw.sigma_omega,
+                              sigma_v=sw.sigma_v, bias_trial_sd=sw.bias_trial_sd)
+        else:  # first, so that the step below simulates the tilt under the data's own noise
+            m = fit_noise_levels(m, untilted(meas), lambda mm: untilted(resim(mm)))
         if amp > 0:  # one step: what the summaries keep of the fitted floor
             a1, b1 = tilt_coefficients(*(resim(m)[k] for k in ("speed", "heading"))).mean(0)
             if np.hypot(a1, b1) > 0:
                 amp, phi = amp * amp / np.hypot(a1, b1), phi + phi - float(np.arctan2(b1, a1))
-                m = model.with_traits(scenario={"floor_tilt": float(min(amp, 0.9)),
-                                                "floor_tilt_direction_rad": float(np.angle(np.exp(1j * phi)))})
-        if noise is not None:  # a fold: the noise levels of the fit on all trials
-            sw = noise.swarm
-            return m.with_traits(speed_trial_sd=noise.speed_trial_sd, sigma_omega=sw.sigma_omega,
-                                 sigma_v=sw.sigma_v, bias_trial_sd=sw.bias_trial_sd)
-        return fit_noise_levels(m, untilted(meas), lambda mm: untilted(resim(mm)))
+                m = m.with_traits(scenario={"floor_tilt": float(min(amp, 0.9)),
+                                            "floor_tilt_direction_rad": float(np.angle(np.exp(1j * phi)))})
+        return m
