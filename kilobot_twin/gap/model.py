@@ -213,7 +213,7 @@ def _start_poses(x, y, dt_s, lag_s=2.0):
 
 
 #: where a scenario field that an effect fitted came from, for its error message
-_FITTED = "the model's fitted scenario (TwinModel.scenario)"
+_FITTED = "the scenario an effect's fit set (TwinModel.scenario)"
 
 
 def simulate(cond: Conditions, swarm, M: int, seed: int, trials=None) -> dict:
