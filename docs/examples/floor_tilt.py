@@ -14,7 +14,9 @@ track's mean heading (per robot centred, pooled over robots), gives A cos phi an
 speed = v (1 + A cos(heading - phi)). A track's summaries blur that (tracking noise lengthens
 chords by the same amount whatever the speed; a robot's heading wanders within a trial), so one
 simulation of the fitted floor is regressed the same way and the amplitude scaled, and the
-direction turned, by what it lost.
+direction turned, by what it lost; and the population's speed level matched again (the base
+matched it without a floor, so it holds what the tilt added on average over the headings the
+trials happened to take: a per cent, at 12 robots, that every held-out trial then missed by).
 
 The noise levels, again: the base model, fitted without a tilt, took the speed changes the tilt
 makes from trial to trial for trial-to-trial speed jitter (a nuisance it fits from the data).
@@ -83,10 +85,15 @@ class FloorTilt(Effect):
                               sigma_v=sw.sigma_v, bias_trial_sd=sw.bias_trial_sd)
         else:  # first, so that the step below simulates the tilt under the data's own noise
             m = fit_noise_levels(m, untilted(meas), lambda mm: untilted(resim(mm)))
+        sim = resim(m)
         if amp > 0:  # one step: what the summaries keep of the fitted floor
-            a1, b1 = tilt_coefficients(*(resim(m)[k] for k in ("speed", "heading"))).mean(0)
+            a1, b1 = tilt_coefficients(sim["speed"], sim["heading"]).mean(0)
             if np.hypot(a1, b1) > 0:
                 amp, phi = amp * amp / np.hypot(a1, b1), phi + phi - float(np.arctan2(b1, a1))
                 m = m.with_traits(scenario={"floor_tilt": float(min(amp, 0.9)),
                                             "floor_tilt_direction_rad": float(np.angle(np.exp(1j * phi)))})
-        return m
+        # The speed level again: the base matched it to these trials without a floor, so it holds
+        # what the tilt added on average over the headings they happened to take.
+        ok = np.isfinite(meas["speed"])
+        level = np.nanmean(meas["speed"]) / np.nanmean(np.where(ok, sim["speed"], np.nan))
+        return m.with_traits(speed_factor=m.swarm.speed_factor * level)
