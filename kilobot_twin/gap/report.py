@@ -100,7 +100,9 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
             lines.append(f"| {i + 1} | {st['name']} | {sc['loglik_gain']:.1f} ({sc['ci'][0]:.1f} .. {sc['ci'][1]:.1f}) | "
                          f"{ru['name'] or 'none'} | {over} | {st['gap_after']:.2f} |")
         for i, st in enumerate(s["steps"]):
-            if st["runner_up"].get("why_this_one"):
+            if st["runner_up"]["name"] is None:
+                lines.append(f"\nStep {i + 1}: no other candidate scored on the same summaries competed with it, so no runner-up is shown.")
+            elif st["runner_up"].get("why_this_one"):
                 lines.append(f"\nStep {i + 1}: the runner-up shown is {st['runner_up']['why_this_one']}.")
             if st.get("set_aside"):
                 lines.append(f"Not scored at step {i + 1}: {', '.join(st['set_aside'])} (accounts for none of the "
