@@ -523,15 +523,30 @@ def test_a_heading_bias_under_tracking_noise_that_swamps_the_wander_is_named(tmp
     between-robot F stayed flagged after the right heading bias (z 3.6), and nothing was named.
     With the readings combined the heading bias is named, and the noise is the truth's within 4
     sds of the turn rates' reading (a within-robot variance over 12 x 3 degrees of freedom:
-    relative sd sqrt(2 / 36) = 0.24 in sigma^2, 0.12 in sigma)."""
-    from kilobot_twin.gap.workflow import GapSettings, run_gap
+    relative sd sqrt(2 / 36) = 0.24 in sigma^2, 0.12 in sigma).
+
+    At this tracking noise the fit also carries the Monte Carlo error of its simulations, larger
+    than the data's: over the workflow's seeds 3040-3047 the fits scatter by 0.29 of the truth
+    (0.0008-0.0040; one seed's fit passing or failing a band of 0.12 is luck, and a simulated
+    start heading moved seed 3042's from 0.0031 to 0.0012). So the noise is read as the median of
+    the base's fit over those eight seeds, within 4 sds of both errors: the data's 0.12 and the
+    median's Monte Carlo sd, 1.25 x the fits' sample sd / sqrt(8)."""
+    from kilobot_twin.gap import effects as E
+    from kilobot_twin.gap import workflow as W
 
     ds, truth = _synth_as_evaluated(tmp_path, "heading_bias", 3042)
     assert truth["observation"]["tracking_noise_m"] == pytest.approx(0.006773, abs=1e-6)
-    rep = run_gap([str(ds)], tmp_path / "out", gs=GapSettings(seed=3042), log=lambda *a: None)
+    rep = W.run_gap([str(ds)], tmp_path / "out", gs=W.GapSettings(seed=3042), log=lambda *a: None)
     assert rep["named_effects"] == ["heading_bias"] and not rep["unexplained"]
-    sigma = rep["datasets"][0]["nuisances"]["sigma_omega_rad_sqrt_s"]
-    assert abs(sigma / 0.00296 - 1) < 4 * 0.12, sigma
+    cond, meas = W.measured_summaries(W._load_data(str(ds)))
+    meas = E.Summaries(meas, np.arange(cond.trials))
+    rel = []
+    for seed in range(3040, 3048):
+        start = E.nominal_model("motion", cond.robot_ids, cond.forward_speed_m_s)
+        base = W._Fitter(cond, meas, start, W.GapSettings(seed=seed), True).fit((), list(range(cond.trials)))
+        rel.append(base.swarm.sigma_omega[0] / 0.00296)
+    mc = 1.2533 * np.std(rel, ddof=1) / np.sqrt(len(rel))
+    assert abs(np.median(rel) - 1) < 4 * np.hypot(0.12, mc), (rel, mc)
 
 
 def test_a_speed_spread_whose_trials_vary_less_than_the_model_says_is_named(tmp_path):
