@@ -1517,11 +1517,17 @@ def load_effects(path: str, taken=()) -> dict:
     p = Path(path)
     if p.suffix != ".py" or not p.is_file():
         raise ConfigError("--effects", f"{path} is not a Python file", "give the path of a .py file that defines Effect subclasses")
-    spec = importlib.util.spec_from_file_location(f"kilobot_twin_user_effects_{abs(hash(str(p.resolve())))}", p)
+    import hashlib
+    import sys
+
+    tag = hashlib.sha1(str(p.resolve()).encode()).hexdigest()[:8]
+    spec = importlib.util.spec_from_file_location(f"user_effects_{p.stem}_{tag}", p)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # as an import would: its classes can then say where they are from
     try:
         spec.loader.exec_module(module)
     except Exception as exc:  # the user's code: one line, where in their file it failed
+        del sys.modules[spec.name]
         lines = [f.lineno for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename) == p]
         if isinstance(exc, SyntaxError) and exc.lineno:
             lines = [exc.lineno]

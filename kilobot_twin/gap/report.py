@@ -76,6 +76,9 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
              f"Named effects (in the order added): **{', '.join(report['named_effects']) or 'none'}**; "
              f"unexplained: **{report['unexplained']}**"
              + (f" (signals: {', '.join(report['unexplained_signals'])})" if report["unexplained_signals"] else ""), ""]
+    mine = {k: v["source"] for k, v in report.get("library", {}).items() if v["source"] != "kilobot_twin"}
+    if mine:
+        lines += ["Candidates of your own beside the library's: " + ", ".join(f"{k} (`{v}`)" for k, v in mine.items()), ""]
     for j, s in enumerate(report["datasets"]):
         lines += [f"## {s['dataset']} ({s['kind']}, {len(s['robots'])} robots x {s['trials']} trials)", "",
                   f"- gap before: {s['gap_before']['value']:.2f} (95 % CI {s['gap_before']['ci95'][0]:.2f} .. {s['gap_before']['ci95'][1]:.2f})",

@@ -1825,6 +1825,8 @@ def run_gap(data: list[str], out: str | Path, model_path: str | None = None, gs:
     first, last = sections[0], sections[-1]
     report = {
         "version": __version__, "seed": gs.seed,
+        # the candidates: the library's and a user's own (``--effects``), with the file each came from
+        "library": _library_doc(gs.library),
         "named_effects": named,
         "unexplained": any(s["unexplained"] for s in sections),
         "unexplained_signals": [sig for s in sections for sig in s["unexplained_signals"]],
@@ -1841,6 +1843,23 @@ def run_gap(data: list[str], out: str | Path, model_path: str | None = None, gs:
 
     write_markdown(out, report, residuals)
     return report
+
+
+def _library_doc(library: dict) -> dict:
+    """name -> where its class is defined: ``kilobot_twin`` for the library's own effects, the
+    source file for a user's."""
+    import inspect
+
+    doc = {}
+    for name, e in library.items():
+        cls = type(e)
+        own = cls.__module__.startswith("kilobot_twin.")
+        try:
+            src = "kilobot_twin" if own else str(Path(inspect.getsourcefile(cls)).resolve())
+        except TypeError:  # defined where no file holds it (an interactive session)
+            src = cls.__module__
+        doc[name] = {"class": cls.__qualname__, "source": src}
+    return doc
 
 
 def _combine(sections, key):

@@ -69,7 +69,10 @@ def test_a_users_tilted_floor_is_named_and_the_gap_shrinks(tilted, tmp_path):
     fit_a, fit_phi = sec["scenario"]["floor_tilt"], sec["scenario"]["floor_tilt_direction_rad"]
     assert abs(fit_a - true_a) < 4 * se.max(), (fit_a, true_a, se)
     assert abs(np.angle(np.exp(1j * (fit_phi - true_phi)))) < 4 * se.max() / true_a, (fit_phi, true_phi)
-    assert "`floor_tilt`" in (out / "report.md").read_text()
+    md = (out / "report.md").read_text()
+    assert "`floor_tilt`" in md and f"floor_tilt (`{EXAMPLE}`)" in md  # the fitted floor, and where the effect came from
+    assert rep["library"]["floor_tilt"] == {"class": "FloorTilt", "source": str(EXAMPLE)}
+    assert rep["library"]["heading_bias"]["source"] == "kilobot_twin"
 
 
 def test_a_users_effect_is_not_scored_on_null_data(tmp_path):
