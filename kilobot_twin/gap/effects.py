@@ -926,10 +926,14 @@ class Effect(abc.ABC):
     """A named effect the workflow can add to the twin (like a pysindy feature library entry).
 
     Subclass it, give ``name``, ``kind`` (the data it explains: motion, light_sweep, blink),
-    ``predicts`` and ``fit``, and pass it in ``GapSettings(library=...)``: the workflow scores
-    every effect of the library the same way (held-out likelihood of simulations of the fitted
-    model), so adding one needs no change to the workflow. ``simulate`` is the fitted model's
-    simulation under the data's conditions (the twin's, by default).
+    ``predicts`` and ``fit``, and pass it in ``GapSettings(library=...)``, or in a file to
+    ``kilobot-twin gap --effects FILE.py`` (:func:`load_effects`): the workflow scores every
+    effect of the library the same way (held-out likelihood of simulations of the fitted model),
+    so adding one needs no change to the workflow. ``fit`` returns the model with the effect in
+    it: per-robot traits by ``model.with_traits(trait=array)``, fields of the core's scenario for
+    the whole swarm by ``model.with_traits(scenario={...})`` (``TwinModel.scenario``; a complete
+    example: ``docs/examples/floor_tilt.py``). ``simulate`` is the fitted model's simulation
+    under the data's conditions (the twin's, by default).
     """
 
     name = ""
