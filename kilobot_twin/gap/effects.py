@@ -1519,8 +1519,10 @@ def load_effects(path: str, taken=()) -> dict:
     from ..errors import ConfigError
 
     p = Path(path)
-    if p.suffix != ".py" or not p.is_file():
-        raise ConfigError("--effects", f"{path} is not a Python file", "give the path of a .py file that defines Effect subclasses")
+    if not p.is_file():
+        raise ConfigError("--effects", f"{path} does not exist", "give the path of a .py file that defines Effect subclasses")
+    if p.suffix != ".py":
+        raise ConfigError("--effects", f"{path} is not a Python file (.py)", "give the path of a .py file that defines Effect subclasses")
     import hashlib
     import sys
 

@@ -93,7 +93,8 @@ _TILT = ("class T(Effect):\n    name, kind = 'tilt2', 'motion'\n    predicts = {
 
 
 @pytest.mark.parametrize("text, says", [
-    (None, "is not a Python file"),
+    (None, "mine.py does not exist"),
+    ("x = 1\n", "is not a Python file (.py)"),  # written as mine.txt
     (_HEAD + "x = (\n", "failed to load at line 2: SyntaxError"),
     (_HEAD + "y = undefined_name\n", "failed to load at line 2: NameError"),
     ("import numpy\n", "defines no Effect subclass"),
@@ -110,7 +111,7 @@ _TILT = ("class T(Effect):\n    name, kind = 'tilt2', 'motion'\n    predicts = {
 ])
 def test_a_file_that_is_not_a_working_effect_gets_one_line_and_exit_2(tilted, tmp_path, capsys, text, says):
     ds, _ = tilted
-    f = tmp_path / "mine.py"
+    f = tmp_path / ("mine.txt" if says.startswith("is not a Python") else "mine.py")
     if text is not None:
         f.write_text(text)
     out = tmp_path / "out"
