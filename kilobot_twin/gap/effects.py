@@ -1511,8 +1511,10 @@ def load_effects(path: str, taken=()) -> dict:
     one it imports), made without arguments, by name. ``taken``: names already in use (the
     library's, other files'). Each problem is one :class:`ConfigError` naming ``--effects``, the
     file and the fix; the file is run as a module, once."""
+    import hashlib
     import importlib.util
     import inspect
+    import sys
     import traceback
     from pathlib import Path
 
@@ -1523,9 +1525,6 @@ def load_effects(path: str, taken=()) -> dict:
         raise ConfigError("--effects", f"{path} does not exist", "give the path of a .py file that defines Effect subclasses")
     if p.suffix != ".py":
         raise ConfigError("--effects", f"{path} is not a Python file (.py)", "give the path of a .py file that defines Effect subclasses")
-    import hashlib
-    import sys
-
     tag = hashlib.sha1(str(p.resolve()).encode()).hexdigest()[:8]
     spec = importlib.util.spec_from_file_location(f"user_effects_{p.stem}_{tag}", p)
     module = importlib.util.module_from_spec(spec)
