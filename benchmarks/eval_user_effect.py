@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import io
 import json
 import sys
@@ -34,7 +35,9 @@ HERE = Path(__file__).resolve().parent
 DEFAULT_EFFECTS = HERE.parent / "docs" / "examples" / "floor_tilt.py"
 
 
+@functools.cache
 def _eval_gap():
+    """benchmarks/eval_gap.py, loaded once per process (its dataset writer is the one used here)."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("eval_gap", HERE / "eval_gap.py")

@@ -98,9 +98,7 @@ def gap(data: list[str], out: str, model: str | None = None, seed: int = 0, quie
         effects: list[str] | None = None) -> dict:
     """Hold the twin against measured data: detect, name, add, show the gap shrink. ``effects``:
     Python files whose Effect subclasses join the library's candidates."""
-    import traceback
-
-    from .gap.effects import LIBRARY, load_effects
+    from .gap.effects import LIBRARY, frame_in, load_effects
     from .gap.workflow import GapSettings, run_gap
 
     check_out_dir(out)
@@ -114,8 +112,7 @@ def gap(data: list[str], out: str, model: str | None = None, seed: int = 0, quie
     except ConfigError:
         raise
     except Exception as exc:  # raised in a user's effect: one line, where in their file
-        mine = [(f, fr) for f in effects or [] for fr in traceback.extract_tb(exc.__traceback__)
-                if Path(fr.filename).resolve() == Path(f).resolve()]
+        mine = [(f, fr) for f in effects or [] if (fr := frame_in(exc, f)) is not None]
         if not mine:
             raise
         f, fr = mine[-1]

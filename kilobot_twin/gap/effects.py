@@ -1515,7 +1515,6 @@ def load_effects(path: str, taken=()) -> dict:
     import importlib.util
     import inspect
     import sys
-    import traceback
     from pathlib import Path
 
     from ..errors import ConfigError
@@ -1533,10 +1532,9 @@ def load_effects(path: str, taken=()) -> dict:
         spec.loader.exec_module(module)
     except Exception as exc:  # the user's code: one line, where in their file it failed
         del sys.modules[spec.name]
-        lines = [f.lineno for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename) == p]
-        if isinstance(exc, SyntaxError) and exc.lineno:
-            lines = [exc.lineno]
-        at = f" at line {lines[-1]}" if lines else ""
+        frame = frame_in(exc, p)
+        line = exc.lineno if isinstance(exc, SyntaxError) and exc.lineno else frame.lineno if frame else None
+        at = f" at line {line}" if line else ""
         raise ConfigError("--effects", f"{path} failed to load{at}: {type(exc).__name__}: {exc}", "fix the file") from None
     found = {}
     for _, cls in inspect.getmembers(module, inspect.isclass):
@@ -1566,3 +1564,14 @@ def load_effects(path: str, taken=()) -> dict:
         raise ConfigError("--effects", f"{path} defines no Effect subclass",
                           "subclass kilobot_twin.gap.effects.Effect in that file")
     return found
+
+
+def frame_in(exc: BaseException, path):
+    """The last frame of ``exc``'s traceback that lies in the file ``path`` (a user's effect
+    file), or None: where in their own code it went wrong."""
+    import traceback
+    from pathlib import Path
+
+    p = Path(path).resolve()
+    frames = [f for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename).resolve() == p]
+    return frames[-1] if frames else None
