@@ -965,6 +965,10 @@ class Effect(abc.ABC):
     #: gains. :func:`kilobot_twin.gap.workflow._heldout` widens the spread by the level's
     #: estimation error carried through the spread (see :func:`spread_leverage`).
     scales_spread: tuple = ()
+    #: What a size of :meth:`at_size` measures (for the report), and the sizes searched for the
+    #: smallest one the dataset flags with 80 % power: (smallest, largest), both > 0.
+    size_unit: str = ""
+    size_range: tuple = ()
 
     #: The kind of statistic (:func:`kilobot_twin.gap.workflow.statistics`) each way of predicting
     #: a summary can account for: robots that differ by a level, robots whose level moves over
@@ -990,6 +994,19 @@ class Effect(abc.ABC):
         from .model import simulate
 
         return simulate(cond, model, M, seed, trials)
+
+    def at_size(self, model: TwinModel, size: float, rng: np.random.Generator) -> TwinModel:
+        """``model`` with this effect at ``size`` (in :attr:`size_unit`; ``rng`` for an effect
+        that is drawn, such as robots' spread). An effect of your own that gives it, with
+        :attr:`size_range` and :attr:`size_unit`, gets the smallest size that the dataset flags
+        with 80 % power in the report (:func:`kilobot_twin.gap.workflow.simulated_detection`:
+        the twin simulated with the effect at each size, tested as the data are). The library's
+        effects have their sizes emulated instead (``minimum_detectable``)."""
+        raise NotImplementedError
+
+    def states_size(self) -> bool:
+        """Whether this effect gives :meth:`at_size` (so a report can state its detectable size)."""
+        return type(self).at_size is not Effect.at_size
 
 
 class HeadingBias(Effect):
@@ -1559,6 +1576,16 @@ def load_effects(path: str, taken=()) -> dict:
         if not e.predicts and type(e).explains is Effect.explains:
             raise ConfigError("--effects", f"{where} predicts no summary, so it can account for no disagreement",
                               "set predicts (e.g. {\"speed\": \"pop\"}) or define explains(signal)")
+        if e.states_size():
+            r = e.size_range
+            ok = isinstance(r, (tuple, list)) and len(r) == 2 and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in r)
+            if not (ok and 0 < r[0] < r[1]):
+                raise ConfigError("--effects", f"{where}: size_range {r!r} is not (smallest, largest) with 0 < smallest < largest",
+                                  "set size_range to the sizes of at_size to search, e.g. (0.005, 0.5)")
+            if not isinstance(e.size_unit, str) or not e.size_unit.strip():
+                raise ConfigError("--effects", f"{where} gives at_size but no size_unit",
+                                  "set size_unit to what a size measures, for the report")
         found[e.name] = e
     if not found:
         raise ConfigError("--effects", f"{path} defines no Effect subclass",
