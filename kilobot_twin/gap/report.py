@@ -121,6 +121,12 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
             lines += ["", "What this dataset can see: the smallest spread named with 80 % power (nothing named means "
                       "nothing larger), and the smallest the detection step alone flags with 80 % power:"]
             for eff, v in s["minimum_detectable"].items():
+                if v.get("by") == "simulation":  # an effect of your own (workflow.simulated_detection)
+                    detected = (f"none up to {v['searched_to']:.3g}" if v["detection_size"] is None
+                                else f"{v['detection_size']:.3g}")
+                    lines.append(f"- {eff} (yours): detected {detected} ({v['unit']}), by simulating the twin with it "
+                                 f"({v['replicates']} datasets per size); named needs at least that (not simulated)")
+                    continue
                 named, detected = (f"none up to {v['searched_to']:.3g}" if x is None else f"{x:.3g}"
                                    for x in (v["size"], v["detection_size"]))
                 if "best_power" in v:
