@@ -69,9 +69,17 @@ class FloorTilt(Effect):
     name, kind = "floor_tilt", "motion"
     predicts = {"speed": "pop"}  # two numbers for the whole swarm, from all robots' trials
     refits_noise = True  # the trial-to-trial speed jitter the base had read off the tilt
+    # For the report's "what this dataset can see": the floor at a size (at_size), the sizes to
+    # search and what a size is.
+    size_unit = "floor slope A: speed x (1 + A cos(heading - downhill))"
+    size_range = (0.005, 0.5)
 
     def explains(self, signal):
         return signal == "speed:heading_dependence"
+
+    def at_size(self, model, size, rng):
+        """The model on a floor of slope ``size``, downhill in a direction drawn from ``rng``."""
+        return model.with_traits(scenario={"floor_tilt": size, "floor_tilt_direction_rad": float(rng.uniform(-np.pi, np.pi))})
 
     def fit(self, model, meas, ref, resim=None, noise=None):
         a, b = tilt_coefficients(meas["speed"], meas["heading"])
