@@ -1496,17 +1496,21 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
 
 
 #: :func:`simulated_detection`: replicates per size (the share flagged has a Monte Carlo sd of
-#: 0.04 at 80 %) and sizes tried over an effect's ``size_range`` (geometric).
-POWER_REPS, POWER_SIZES = 100, 13
+#: 0.04 at 80 %), in groups that each draw the effect afresh, and sizes tried over an effect's
+#: ``size_range`` (geometric).
+POWER_REPS, POWER_GROUPS, POWER_SIZES = 100, 5, 13
 
 
 def simulated_detection(kind: str, cond: Conditions, model: E.TwinModel, null: dict, alpha: float, effect: E.Effect,
-                        seed: int, reps: int = POWER_REPS, sizes: int = POWER_SIZES, power: float = 0.8) -> dict:
+                        seed: int, reps: int = POWER_REPS, sizes: int = POWER_SIZES, power: float = 0.8,
+                        groups: int = POWER_GROUPS) -> dict:
     """The smallest size of an effect of your own that the detection step flags with ``power`` on
     datasets like this one, found by simulating the twin with the effect in it
     (:meth:`effects.Effect.at_size`): for each size of the effect's ``size_range`` (geometric), the
     model with the effect at that size is simulated under the data's conditions (their robots,
-    trials, start poses, frames and gaps) ``reps`` times, and each replicate's statistics are
+    trials, start poses, frames and gaps) ``reps`` times, in ``groups`` that each draw the effect
+    afresh (``at_size``'s ``rng``: a floor's direction, robots' values; the share is then the
+    power for an effect drawn so, not for one draw), and each replicate's statistics are
     tested against this dataset's null as :func:`detect` tests the data's, at the family's level.
     A replicate counts where a signal the effect explains is flagged. Every size draws the same
     random numbers, so the share flagged grows smoothly with the size; the size is read where it
@@ -1525,11 +1529,15 @@ def simulated_detection(kind: str, cond: Conditions, model: E.TwinModel, null: d
     names = list(sim0)
     explained = np.array([effect.explains(n) for n in names])
     def share(size):
-        at = effect.at_size(model, float(size), np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,))))
-        st = statistics(kind, simulate(cond, at, reps, seed), cond.trials, v)
-        p = np.array([[_p_value(float(x), np.asarray(sim0[n][0]), st[n][1])[1] for x in np.asarray(st[n][0])] for n in names])
-        flags = np.array([flagged_by_family(p[:, r], alpha) for r in range(p.shape[1])])  # (reps, statistics)
-        return float(flags[:, explained].any(1).mean()) if explained.any() else 0.0
+        flags = []
+        for g in range(groups):  # each group its own draw of the effect (a floor's direction, robots' values)
+            ss = np.random.SeedSequence(seed, spawn_key=(g,))
+            at = effect.at_size(model, float(size), np.random.default_rng(ss.spawn(1)[0]))
+            st = statistics(kind, simulate(cond, at, reps // groups, int(ss.generate_state(1)[0])), cond.trials, v)
+            p = np.array([[_p_value(float(x), np.asarray(sim0[n][0]), st[n][1])[1] for x in np.asarray(st[n][0])]
+                          for n in names])  # (statistics, replicates)
+            flags += [flagged_by_family(p[:, r], alpha)[explained].any() for r in range(p.shape[1])]
+        return float(np.mean(flags)) if explained.any() else 0.0
 
     grid = np.geomspace(*(float(x) for x in effect.size_range), sizes)
     shares = []
