@@ -75,16 +75,88 @@ def test_a_users_tilted_floor_is_named_and_the_gap_shrinks(tilted, tmp_path):
     assert rep["library"]["heading_bias"]["source"] == "kilobot_twin"
 
 
-def test_a_users_effect_is_not_scored_on_null_data(tmp_path):
-    """The same world without a tilt: nothing named, and the tilt not even scored (no flagged
-    signal is one it explains)."""
-    ds = tmp_path / "ds"
+@pytest.fixture(scope="module")
+def level(tmp_path_factory):
+    """The same world on a level floor (seed 1)."""
+    ds = tmp_path_factory.mktemp("level") / "ds"
     iw.generate("motion", "", ds, seed=1)
+    return ds
+
+
+def test_a_users_effect_is_not_scored_on_null_data_and_its_detectable_size_is_stated(level, tmp_path):
+    """The same world without a tilt: nothing named, and the tilt not even scored (no flagged
+    signal is one it explains). The example gives ``at_size``, so the report states the smallest
+    tilt these data would flag (what that size is worth: the next test)."""
     out = tmp_path / "out"
-    assert main(["gap", str(ds), "--out", str(out), "--effects", str(EXAMPLE), "--quiet"]) == 0
+    assert main(["gap", str(level), "--out", str(out), "--effects", str(EXAMPLE), "--quiet"]) == 0
     rep = json.loads((out / "report.json").read_text())
     assert rep["named_effects"] == [] and rep["datasets"][0]["scenario"] == {}
     assert all("floor_tilt" not in st.get("scores", {}) for st in rep["steps"])
+    mde = rep["datasets"][0]["minimum_detectable"]["floor_tilt"]
+    assert mde["by"] == "simulation" and mde["size"] is None and 0.005 < mde["detection_size"] < 0.5
+    shares = [w for _, w in mde["power_by_size"]]
+    assert shares[0] < 0.8 <= shares[-1]
+    assert "- floor_tilt (yours): detected %.3g (floor slope A" % mde["detection_size"] in (out / "report.md").read_text()
+
+
+def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(level):
+    """``simulated_detection`` against theory. The statistic is the log F of a regression of each
+    track's relative speed on (cos, sin) of its heading, robots' means taken out; a floor of
+    slope A in direction phi makes it non-central F(2, dof) with lambda = A^2 u' M u / sigma^2
+    (M: the design's cross-products, u = (cos phi, sin phi), sigma^2: a track's residual
+    variance). Computed here from the data's headings and from the null the function is handed
+    (its residual variance and its log F's mean and sd, which set the threshold: mean + z sd at
+    the family's level, as the workflow's calibrated p does), the power averaged over directions
+    (the example draws the direction), the slope where it is 80 %. The function's size must lie
+    within 4 Monte Carlo errors of it: the share flagged at 80 % has sd sqrt(0.16 / 100), which
+    the theory's power curve turns into an error of the size."""
+    from scipy import optimize, stats
+
+    from kilobot_twin.gap import effects as E
+    from kilobot_twin.gap import workflow as W
+    from kilobot_twin.gap.model import measured_summaries, simulate
+    from kilobot_twin.recording import measured
+
+    spec = __import__("importlib.util").util.spec_from_file_location("floor_tilt_example", EXAMPLE)
+    ex = __import__("importlib.util").util.module_from_spec(spec)
+    spec.loader.exec_module(ex)
+    cond, meas = measured_summaries(measured.load(level))
+    gs = W.GapSettings()
+    meas = E.Summaries(meas, np.arange(cond.trials))
+    base = W._Fitter(cond, meas, E.nominal_model("motion", cond.robot_ids, cond.forward_speed_m_s), gs, True).fit(
+        (), list(range(cond.trials)))
+    null = simulate(cond, base, gs.m_null, 11)
+    got = W.simulated_detection("motion", cond, base, null, gs.alpha, ex.FloorTilt(), seed=5)["detection_size"]
+
+    def regression(v, h):  # (..., K, N) -> log F, residual variance, design cross-products
+        ok = np.isfinite(v) & np.isfinite(h)
+        with np.errstate(all="ignore"):
+            cols = [np.where(ok, a, np.nan) for a in (v / np.nanmean(np.where(ok, v, np.nan), -2, keepdims=True),
+                                                      np.cos(h), np.sin(h))]
+            y, c, s = (np.nan_to_num(a - np.nanmean(a, -2, keepdims=True)) for a in cols)
+        X = np.stack([c, s], -1).reshape(*c.shape[:-2], -1, 2)
+        y = y.reshape(*y.shape[:-2], -1)
+        M = np.einsum("...ti,...tj->...ij", X, X)
+        b = np.linalg.solve(M, np.einsum("...ti,...t->...i", X, y)[..., None])[..., 0]
+        ss_reg = np.einsum("...i,...i->...", b, np.einsum("...ij,...j->...i", M, b))
+        dof = ok.sum((-2, -1)) - (ok.sum(-2) > 0).sum(-1) - 2
+        res = ((y**2).sum(-1) - ss_reg) / dof
+        return np.log(ss_reg / 2 / res), res, M, dof
+
+    _, _, M, dof = regression(meas["speed"], meas["heading"])
+    lf, res, _, _ = regression(null["speed"], null["heading"])
+    z = stats.norm.isf(gs.alpha / len(W.statistics("motion", null, cond.trials)))
+    thr, sigma2 = np.exp(lf.mean() + z * lf.std(ddof=1)), float(np.median(res))
+    u = [np.array([np.cos(p), np.sin(p)]) for p in np.linspace(0, np.pi, 24, endpoint=False)]
+
+    def power(A):
+        return np.mean([stats.ncf.sf(thr, 2, dof, A**2 * (e @ M @ e) / sigma2) for e in u])
+
+    want = optimize.brentq(lambda A: power(A) - 0.8, 1e-5, 2.0)
+    slope = (power(want * 1.02) - power(want / 1.02)) / (2 * np.log(1.02))  # d power / d ln A
+    se = np.sqrt(0.16 / W.POWER_REPS) / slope
+    print(f"stated {got:.4f}, theory {want:.4f}, ln ratio {np.log(got / want):+.3f}, se {se:.3f}")
+    assert abs(np.log(got / want)) < 4 * se
 
 
 _HEAD = "from kilobot_twin.gap.effects import Effect\n"
@@ -108,6 +180,12 @@ _TILT = ("class T(Effect):\n    name, kind = 'tilt2', 'motion'\n    predicts = {
      "line 8 (fit) raised ZeroDivisionError"),
     (_HEAD + _TILT + "    def fit(self, model, meas, ref, resim=None):\n"
      "        return model.with_traits(scenario={'floor_tiltt': 0.1})\n", "floor_tiltt: unknown scenario key"),
+    (_HEAD + _TILT + "    size_range, size_unit = (0.5, 0.1), 'slope'\n    def at_size(self, model, size, rng):\n"
+     "        return model\n    def fit(self, *a):\n        pass\n", "size_range (0.5, 0.1) is not (smallest, largest)"),
+    (_HEAD + _TILT + "    size_range = (0.01, 0.5)\n    def at_size(self, model, size, rng):\n"
+     "        return model\n    def fit(self, *a):\n        pass\n", "gives at_size but no size_unit"),
+    (_HEAD + _TILT + "    size_range, size_unit = (0.01, 0.5), 'slope'\n    def at_size(self, model, size, rng):\n"
+     "        return 1 / 0\n    def fit(self, *a):\n        pass\n", "line 9 (at_size) raised ZeroDivisionError"),
 ])
 def test_a_file_that_is_not_a_working_effect_gets_one_line_and_exit_2(tilted, tmp_path, capsys, text, says):
     ds, _ = tilted
