@@ -184,7 +184,8 @@ def main(argv=None) -> int:
     jobs = [{"name": f"{a.generator}_{'tilt' if h else 'null'}_{s}", "kind": "motion", "hidden": h, "seed": s,
              "generator": a.generator, "nuisance_scale": None, "fixed_shape": False,
              "random_program": a.generator != "synth", "random_nuisance": a.generator == "synth",
-             "out": str(out), "effects": str(Path(a.effects).resolve()), "at_mde": a.at_mde, "fresh_noise": a.at_mde}
+             "out": str(out), "effects": str(Path(a.effects).resolve()), "at_mde": a.at_mde,
+             "fresh_noise": a.at_mde and a.generator != "indep"}  # the independent world draws it afresh itself
             for s in range(a.first_seed, a.first_seed + a.seeds) for h in (("floor_tilt",) if a.at_mde else ("floor_tilt", ""))]
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
