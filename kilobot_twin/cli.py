@@ -258,7 +258,7 @@ def _parser() -> argparse.ArgumentParser:
     sy.add_argument("--heading-noise-tau", type=_correlation_time, default=0.0, metavar="S",
                     help="motion: correlation time of every robot's turn-rate noise, s (default 0: white)")
     sy.add_argument("--effect-scale", type=_effect_scale, default=1.0, metavar="F",
-                    help="the hidden effects' spread over the robots x F (default 1: synth.py's HIDDEN sizes)")
+                    help="the hidden effects' size (spread over the robots, a floor's slope) x F (default 1: synth.py's HIDDEN sizes)")
     sy.add_argument("--out", required=True)
 
     g = sub.add_parser("gap", help="twin vs measurement: find the disagreement, name the effect, show the gap shrink")

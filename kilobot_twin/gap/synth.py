@@ -82,10 +82,10 @@ def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | Non
     goes through ``obs``):
     the workflow fits them, so evaluations randomise them. ``heading_noise_tau_s`` gives every
     robot's turn-rate noise that correlation time (the trait ``heading_noise_tau``; 0: white).
-    ``effect_scale`` multiplies every hidden effect's spread over the robots (``HIDDEN``'s sds; the
-    sensor gains' and offsets' spread about their middle; not the tilted floor, which is no spread
-    over robots): power studies set an effect to a given size. At 1 the robots are drawn exactly as
-    without it.
+    ``effect_scale`` multiplies every hidden effect's size: its spread over the robots (``HIDDEN``'s
+    sds; the sensor gains' and offsets' spread about their middle) and the tilted floor's slope
+    (0.15 x the scale, at most 0.9, what a scenario allows): power studies set an effect to a given
+    size. At 1 the robots and the floor are drawn exactly as without it.
     """
     effect_scale = check_effect_scale(effect_scale)
     if kind not in DEFAULTS:
@@ -138,7 +138,7 @@ def _hidden_traits(kind, effects, n, rng, s: float = 1.0):
         if "motion_noise" in effects:
             tr["sigma_omega"] = tr["sigma_omega"] * np.exp(rng.normal(0, 0.8 * s, n))
         if "floor_tilt" in effects:
-            extra["floor_tilt"] = {"amplitude": 0.15, "direction_rad": float(rng.uniform(-np.pi, np.pi))}
+            extra["floor_tilt"] = {"amplitude": min(0.15 * s, 0.9), "direction_rad": float(rng.uniform(-np.pi, np.pi))}
     elif kind == "light_sweep":
         for k, v in NOMINAL_SENSOR.items():
             tr[k][:] = v

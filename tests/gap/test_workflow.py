@@ -406,6 +406,17 @@ def test_synths_effect_scale_multiplies_each_effects_spread(tmp_path, kind, hidd
     assert (tmp_path / "one" / "observations.csv").read_bytes() != (tmp_path / "half" / "observations.csv").read_bytes()
 
 
+def test_synths_effect_scale_multiplies_the_floors_slope(tmp_path):
+    """A tilted floor is no spread over robots: ``effect_scale`` multiplies its slope (0.15 at 1),
+    in the same direction, and the robots stay as they were."""
+    kw = dict(robots=6, trials=2, seed=5, duration_s=10.0)
+    one = synth("motion", "floor_tilt", tmp_path / "one", **kw)
+    half = synth("motion", "floor_tilt", tmp_path / "half", effect_scale=0.5, **kw)
+    assert one["floor_tilt"]["amplitude"] == 0.15 and half["floor_tilt"]["amplitude"] == pytest.approx(0.075, abs=1e-15)
+    assert half["floor_tilt"]["direction_rad"] == one["floor_tilt"]["direction_rad"] and half["robots"] == one["robots"]
+    assert (tmp_path / "one" / "observations.csv").read_bytes() != (tmp_path / "half" / "observations.csv").read_bytes()
+
+
 def test_synths_tracker_can_repeat_its_errors_from_frame_to_frame(tmp_path):
     """``Observation(tracking_correlated_m=, tracking_tau_s=)``: the same seed writes the same
     frames at the same times, and the positions differ by Ornstein-Uhlenbeck noise of that sd whose
