@@ -26,6 +26,11 @@ stays. So the effect fits the noise levels again (``refits_noise``; the library'
 every simulated replicate's by its own. (Fitted on speeds with the tilt left in, the jitter read
 whatever a few per cent of error in the amplitude leaves, which at a tilt of 0.15 is a jitter of
 0.03.) Any effect whose signal the base had read as noise must do the same.
+
+What the data can see: ``at_size`` puts a floor of a given slope into a model (downhill in a
+direction drawn from the ``rng`` it is handed), so the report states the smallest slope these data
+flag with 80 % power (``workflow.simulated_detection``: the twin simulated on such floors under the
+data's conditions), and "nothing named" reads "no tilt larger than that".
 """
 
 import numpy as np
