@@ -1517,9 +1517,13 @@ def simulated_detection(kind: str, cond: Conditions, model: E.TwinModel, null: d
     first reaches ``power`` (log-linear between sizes). The search stops at the first size flagged
     in 98 % of replicates.
 
-    The null is the one of the model fitted to these data, held fixed: the statistics are ratios
-    of mean squares (their own within-robot or residual yardstick), so the higher noise level that
-    a base fitted to data with the effect in them may read moves their null little. Naming needs
+    The null is the one of the model fitted to these data: the statistics are ratios of mean
+    squares (their own within-robot or residual yardstick), so the higher noise level that a base
+    fitted to data with the effect in them may read moves their null little. Each replicate is
+    tested against its own bootstrap resample of the null's replicates, as a fresh dataset is
+    tested against a null simulated afresh: the threshold (the null's mean plus z of its sd)
+    scatters from dataset to dataset, and a size read at this null's threshold alone was flagged
+    in 70-80 % of fresh datasets (``benchmarks/eval_user_effect.py --at-mde``). Naming needs
     the held-out score as well, which is not simulated here (it would fit every replicate): the
     size named with ``power`` is at least this one, and "nothing flagged" reads "nothing larger".
     ``size`` is therefore None, ``detection_size`` the size found (None: not reached within the
@@ -1528,15 +1532,24 @@ def simulated_detection(kind: str, cond: Conditions, model: E.TwinModel, null: d
     sim0 = statistics(kind, null, cond.trials, v)
     names = list(sim0)
     explained = np.array([effect.explains(n) for n in names])
+    per = reps // groups
+    # Each replicate's own resample of the null's replicates (the same for every size): a fresh
+    # dataset's null is simulated afresh, and its mean and sd, which set the threshold, come out
+    # other than this one's (log F ratios of few degrees of freedom have long tails: the sd of
+    # 120 replicates scatters by a tenth or more)
+    nulls = {n: np.asarray(sim0[n][0], dtype=float) for n in names}
+    pick = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(groups,))).integers(
+        0, len(nulls[names[0]]), (groups * per, len(nulls[names[0]])))
+
     def share(size):
         flags = []
         for g in range(groups):  # each group its own draw of the effect (a floor's direction, robots' values)
             ss = np.random.SeedSequence(seed, spawn_key=(g,))
             at = effect.at_size(model, float(size), np.random.default_rng(ss.spawn(1)[0]))
-            st = statistics(kind, simulate(cond, at, reps // groups, int(ss.generate_state(1)[0])), cond.trials, v)
-            p = np.array([[_p_value(float(x), np.asarray(sim0[n][0]), st[n][1])[1] for x in np.asarray(st[n][0])]
-                          for n in names])  # (statistics, replicates)
-            flags += [flagged_by_family(p[:, r], alpha)[explained].any() for r in range(p.shape[1])]
+            st = statistics(kind, simulate(cond, at, per, int(ss.generate_state(1)[0])), cond.trials, v)
+            for r in range(per):
+                p = [_p_value(float(np.asarray(st[n][0])[r]), nulls[n][pick[g * per + r]], st[n][1])[1] for n in names]
+                flags.append(flagged_by_family(p, alpha)[explained].any())
         return float(np.mean(flags)) if explained.any() else 0.0
 
     grid = np.geomspace(*(float(x) for x in effect.size_range), sizes)
