@@ -123,7 +123,7 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
             for eff, v in s["minimum_detectable"].items():
                 if v.get("by") == "simulation":  # an effect of your own (workflow.simulated_detection)
                     detected = (f"none up to {v['searched_to']:.3g}" if v["detection_size"] is None
-                                else f"{v['detection_size']:.3g}")
+                                else f"{'at most ' if v.get('at_most') else ''}{v['detection_size']:.3g}")
                     lines.append(f"- {eff} (yours): detected {detected} ({v['unit']}), by simulating the twin with it "
                                  f"({v['replicates']} datasets per size); named needs at least that (not simulated)")
                     continue

@@ -1499,6 +1499,9 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
 #: 0.04 at 80 %), in groups that each draw the effect afresh, and sizes tried over an effect's
 #: ``size_range`` (geometric).
 POWER_REPS, POWER_GROUPS, POWER_SIZES = 100, 5, 13
+#: Grid steps :func:`simulated_detection` goes below an effect's ``size_range`` where its smallest
+#: size is flagged with the power already (synth 3374: 98 % at 0.005, the tilt's range's smallest).
+BELOW_RANGE_STEPS = 8
 
 
 def simulated_detection(kind: str, cond: Conditions, model: E.TwinModel, null: dict, alpha: float, effect: E.Effect,
@@ -1515,7 +1518,8 @@ def simulated_detection(kind: str, cond: Conditions, model: E.TwinModel, null: d
     A replicate counts where a signal the effect explains is flagged. Every size draws the same
     random numbers, so the share flagged grows smoothly with the size; the size is read where it
     first reaches ``power`` (log-linear between sizes). The search stops at the first size flagged
-    in 98 % of replicates.
+    in 98 % of replicates, and goes on below the range (:data:`BELOW_RANGE_STEPS`) where its
+    smallest size is flagged with ``power`` already (``at_most``: still so at the last one).
 
     The null is the one of the model fitted to these data: the statistics are ratios of mean
     squares (their own within-robot or residual yardstick), so the higher noise level that a base
@@ -1558,7 +1562,13 @@ def simulated_detection(kind: str, cond: Conditions, model: E.TwinModel, null: d
         shares.append(share(size))
         if shares[-1] >= 0.98:
             break
+    ratio = float(grid[1] / grid[0]) if sizes > 1 else 2.0
     grid = list(grid[: len(shares)])
+    for _ in range(BELOW_RANGE_STEPS):  # flagged at the range's smallest size already: on down
+        if shares[0] < power:
+            break
+        grid.insert(0, grid[0] / ratio)
+        shares.insert(0, share(grid[0]))
     j = next((i for i, w in enumerate(shares) if w >= power), 0)
     if j > 0:  # four more sizes where the share crosses: a steep curve is not linear between the grid's
         for size in np.geomspace(grid[j - 1], grid[j], 6)[1:-1]:
@@ -1567,6 +1577,7 @@ def simulated_detection(kind: str, cond: Conditions, model: E.TwinModel, null: d
             j += 1
     found = _first_crossing(np.array(grid), shares, power)
     return {"size": None, "detection_size": found if np.isfinite(found) else None, "searched_to": float(grid[-1]),
+            "at_most": bool(shares[0] >= power),  # flagged with power at the smallest size tried: the size is at most that
             "unit": effect.size_unit, "by": "simulation", "replicates": reps,
             "power_by_size": [[float(s), float(w)] for s, w in zip(grid, shares)]}
 

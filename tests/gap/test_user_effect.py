@@ -99,8 +99,8 @@ def test_a_users_effect_is_not_scored_on_null_data_and_its_detectable_size_is_st
     assert "- floor_tilt (yours): detected %.3g (floor slope A" % mde["detection_size"] in (out / "report.md").read_text()
 
 
-@pytest.mark.parametrize("m", [120, 12])
-def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(level, m):
+@pytest.mark.parametrize("m, lowest", [(120, 0.005), (12, 0.005), (120, 0.05)])
+def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(level, m, lowest):
     """``simulated_detection`` against theory. The statistic is the log F of a regression of each
     track's relative speed on (cos, sin) of its heading, robots' means taken out; a floor of
     slope A in direction phi makes it non-central F(2, dof) with lambda = A^2 u' M u / sigma^2
@@ -114,7 +114,9 @@ def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(le
     the theory's power curve turns into an error of the size. With a null of 12 replicates (the
     workflow simulates 120) the threshold scatters so much from null to null that the size read
     at the one null's threshold alone lies more than 4 of those errors below, so the test tells
-    the two apart there (with 400 replicates per size)."""
+    the two apart there (with 400 replicates per size). With a ``size_range`` whose smallest size
+    (0.05) is flagged already, the search goes on below it and finds the same; with one (0.2) too
+    high for that, the size is the smallest tried, marked ``at_most``."""
     from scipy import optimize, stats
 
     from kilobot_twin.gap import effects as E
@@ -132,7 +134,10 @@ def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(le
         (), list(range(cond.trials)))
     null = {k: v[:m] for k, v in simulate(cond, base, gs.m_null, 11).items()}
     reps = W.POWER_REPS if m > 20 else 4 * W.POWER_REPS  # a finer reading where the two thresholds are compared
-    got = W.simulated_detection("motion", cond, base, null, gs.alpha, ex.FloorTilt(), seed=5, reps=reps)["detection_size"]
+    tilt = type("Tilt", (ex.FloorTilt,), {"size_range": (lowest, 0.5)})()
+    found = W.simulated_detection("motion", cond, base, null, gs.alpha, tilt, seed=5, reps=reps)
+    got = found["detection_size"]
+    assert not found["at_most"] and (lowest == 0.005 or found["power_by_size"][0][0] < lowest)
 
     def regression(v, h):  # (..., K, N) -> log F, residual variance, design cross-products
         ok = np.isfinite(v) & np.isfinite(h)
@@ -170,6 +175,10 @@ def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(le
     assert abs(np.log(got / want)) < 4 * se
     if m < 20:  # here the test tells the two apart: a size read at the one threshold would fail it
         assert np.log(want / alone) > 4 * se
+    if lowest > 0.01:  # a range that starts far too high: the smallest size tried, "at most"
+        high = type("Tilt", (ex.FloorTilt,), {"size_range": (0.2, 0.5)})()
+        far = W.simulated_detection("motion", cond, base, null, gs.alpha, high, seed=5, reps=reps)
+        assert far["at_most"] and far["detection_size"] == far["power_by_size"][0][0] > want
 
 
 _HEAD = "from kilobot_twin.gap.effects import Effect\n"
