@@ -933,7 +933,8 @@ class Effect(abc.ABC):
     it: per-robot traits by ``model.with_traits(trait=array)``, fields of the core's scenario for
     the whole swarm by ``model.with_traits(scenario={...})`` (``TwinModel.scenario``; a complete
     example: ``docs/examples/floor_tilt.py``). ``simulate`` is the fitted model's simulation
-    under the data's conditions (the twin's, by default).
+    under the data's conditions (the twin's, by default). ``at_size`` (optional, with
+    ``size_range`` and ``size_unit``) lets a report state the smallest size the data would flag.
     """
 
     name = ""
