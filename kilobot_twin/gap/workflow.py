@@ -1531,7 +1531,7 @@ def simulated_detection(kind: str, cond: Conditions, model: E.TwinModel, null: d
     replicates (default: this null and :data:`POOL_FACTOR` - 1 times as many simulated beside it).
     The threshold (the null's mean plus z of its sd; a log F of 2 degrees of freedom has long
     tails) scatters from null to null: read at this null's threshold alone, the size was flagged
-    in 70 % of fresh datasets (synth, indep, stress, seeds 3340-3359: 45/60 pooled), and with each
+    in 75 % of fresh datasets (synth, indep, stress, seeds 3340-3359: 45/60 pooled), and with each
     replicate tested against a bootstrap resample of this null, which scatters less than fresh
     nulls do, in 74 % (seeds 3360-3399: 89/120); non-central F theory on one dataset gave 0.71,
     0.74 and, for nulls drawn from a pool of ten, 0.81 (``benchmarks/eval_user_effect.py

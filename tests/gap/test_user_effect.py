@@ -2,6 +2,7 @@
 example of the docs, a tilted floor, on a world the twin was not built from; and what a file that
 is not a working effect gets (one line, exit 2, nothing written)."""
 
+import importlib.util
 import json
 from pathlib import Path
 
@@ -124,8 +125,8 @@ def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(le
     from kilobot_twin.gap.model import measured_summaries, simulate
     from kilobot_twin.recording import measured
 
-    spec = __import__("importlib.util").util.spec_from_file_location("floor_tilt_example", EXAMPLE)
-    ex = __import__("importlib.util").util.module_from_spec(spec)
+    spec = importlib.util.spec_from_file_location("floor_tilt_example", EXAMPLE)
+    ex = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(ex)
     cond, meas = measured_summaries(measured.load(level))
     gs = W.GapSettings()
