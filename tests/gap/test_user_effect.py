@@ -101,23 +101,25 @@ def test_a_users_effect_is_not_scored_on_null_data_and_its_detectable_size_is_st
 
 
 @pytest.mark.parametrize("m, lowest", [(120, 0.005), (12, 0.005), (120, 0.05)])
-def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(level, m, lowest):
+def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(level, m, lowest, monkeypatch):
     """``simulated_detection`` against theory. The statistic is the log F of a regression of each
     track's relative speed on (cos, sin) of its heading, robots' means taken out; a floor of
     slope A in direction phi makes it non-central F(2, dof) with lambda = A^2 u' M u / sigma^2
     (M: the design's cross-products, u = (cos phi, sin phi), sigma^2: a track's residual
     variance). Computed here from the data's headings and from the null the function is handed
     (its residual variance), and from nulls of as many replicates drawn from the pool of the
-    model's replicates the function is handed (their log F's mean and sd set the threshold: mean +
-    z sd at the family's level, as the workflow's calibrated p does), the power averaged over
-    those nulls and over directions (the example draws the direction), the slope where it is 80 %.
+    model's replicates the function is handed (the mean and sd of their F's normal scores, the
+    standard normal quantile of F(2, dof)'s upper tail by scipy, set the threshold: mean + z sd at
+    the family's level, as the workflow's calibrated p does), the power averaged over those nulls
+    and over directions (the example draws the direction), the slope where it is 80 %.
     The function's size must lie within 4 Monte Carlo errors of it: the share flagged at 80 % has
     sd sqrt(0.16 / 100), which the theory's power curve turns into an error of the size. With a
     null of 12 replicates (the workflow simulates 120) the threshold scatters so much from null to
     null that the size read at the one null's threshold alone lies more than 4 of those errors
     away, so the test tells the two apart there (with 400 replicates per size). With a ``size_range`` whose smallest size
-    (0.05) is flagged already, the search goes on below it and finds the same; with one (0.2) too
-    high for that, the size is the smallest tried, marked ``at_most``."""
+    (0.05) is flagged already, the search goes on below it (halving) and finds the same; with one
+    (0.2) too high for the steps allowed (one, here), the size is the smallest tried, marked
+    ``at_most``."""
     from scipy import optimize, stats
 
     from kilobot_twin.gap import effects as E
@@ -154,14 +156,17 @@ def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(le
         ss_reg = np.einsum("...i,...i->...", b, np.einsum("...ij,...j->...i", M, b))
         dof = ok.sum((-2, -1)) - (ok.sum(-2) > 0).sum(-1) - 2
         res = ((y**2).sum(-1) - ss_reg) / dof
-        return np.log(ss_reg / 2 / res), res, M, dof
+        return stats.norm.isf(stats.f.sf(ss_reg / 2 / res, 2, dof)), res, M, dof
+
+    def threshold(scores):  # mean + z sd of normal scores -> the F that the data's dof needs
+        return stats.f.isf(stats.norm.sf(scores.mean(-1) + z * scores.std(-1, ddof=1)), 2, dof)
 
     _, _, M, dof = regression(meas["speed"], meas["heading"])
     lf, res, _, _ = regression(null["speed"], null["heading"])
     z = stats.norm.isf(gs.alpha / len(W.statistics("motion", null, cond.trials)))
     lp, _, _, _ = regression(pool["speed"], pool["heading"])
     drawn = lp[np.argsort(np.random.default_rng(0).random((400, lp.size)), axis=1)[:, :m]]  # nulls of m, from the pool
-    thr, sigma2 = np.exp(drawn.mean(1) + z * drawn.std(1, ddof=1)), float(np.median(res))
+    thr, sigma2 = threshold(drawn), float(np.median(res))
     u = [np.array([np.cos(p), np.sin(p)]) for p in np.linspace(0, np.pi, 24, endpoint=False)]
 
     def power(A):
@@ -170,7 +175,7 @@ def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(le
     want = optimize.brentq(lambda A: power(A) - 0.8, 1e-5, 2.0)
     slope = (power(want * 1.02) - power(want / 1.02)) / (2 * np.log(1.02))  # d power / d ln A
     se = np.sqrt(0.16 / reps) / slope
-    one = np.exp(lf.mean() + z * lf.std(ddof=1))  # the handed null's threshold alone
+    one = threshold(lf)  # the handed null's threshold alone
     alone = optimize.brentq(lambda A: np.mean([stats.ncf.sf(one, 2, dof, A**2 * (e @ M @ e) / sigma2) for e in u]) - 0.8,
                             1e-5, 2.0)
     print(f"stated {got:.4f}, theory {want:.4f}, ln ratio {np.log(got / want):+.3f}, se {se:.3f}; "
@@ -178,10 +183,11 @@ def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(le
     assert abs(np.log(got / want)) < 4 * se
     if m < 20:  # here the test tells the two apart: a size read at the one threshold would fail it
         assert abs(np.log(want / alone)) > 4 * se
-    if lowest > 0.01:  # a range that starts far too high: the smallest size tried, "at most"
+    if lowest > 0.01:  # a range that starts too high for the steps below it: the smallest size tried, "at most"
         high = type("Tilt", (ex.FloorTilt,), {"size_range": (0.2, 0.5)})()
+        monkeypatch.setattr(W, "BELOW_RANGE_STEPS", 1)
         far = W.simulated_detection("motion", cond, base, null, gs.alpha, high, seed=5, reps=reps, pool=pool)
-        assert far["at_most"] and far["detection_size"] == far["power_by_size"][0][0] > want
+        assert far["at_most"] and far["detection_size"] == far["power_by_size"][0][0] == 0.1
 
 
 _HEAD = "from kilobot_twin.gap.effects import Effect\n"
