@@ -314,7 +314,8 @@ def _resolution(s: dict, comp: str):
 
 
 #: The least spread a one-sided statistic's simulated null is taken to have: those statistics are
-#: log ratios of mean squares, and sampling alone gives the log F of <= 40 robots a null sd of
+#: log ratios of mean squares (the heading dependence one's normal score, sd 1), and sampling
+#: alone gives the log F of <= 40 robots a null sd of
 #: sqrt(2 / 39) = 0.23 or more under any noise. A null far narrower is a world without noise (clocks
 #: started with the frames and never jittering: every replicate blinks alike), where the fitted
 #: model's pooled per-robot rates differ from the data's means by parts in a thousand and the
