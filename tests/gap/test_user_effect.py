@@ -190,6 +190,29 @@ def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(le
         assert far["at_most"] and far["detection_size"] == far["power_by_size"][0][0] == 0.1
 
 
+def test_the_size_stated_does_not_depend_on_the_threads_it_is_simulated_on(level):
+    """The workflow simulates the sizes' groups and the pool's parts ``GapSettings.threads`` at a
+    time; each has its own seed, so one thread and two give the same curve to the last bit (a
+    machine's core count must not change a report)."""
+    from kilobot_twin.gap import effects as E
+    from kilobot_twin.gap import workflow as W
+    from kilobot_twin.gap.model import measured_summaries, simulate
+    from kilobot_twin.recording import measured
+
+    spec = importlib.util.spec_from_file_location("floor_tilt_example", EXAMPLE)
+    ex = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(ex)
+    cond, meas = measured_summaries(measured.load(level))
+    gs = W.GapSettings()
+    base = W._Fitter(cond, E.Summaries(meas, np.arange(cond.trials)),
+                     E.nominal_model("motion", cond.robot_ids, cond.forward_speed_m_s), gs, True).fit((), list(range(cond.trials)))
+    null = simulate(cond, base, 12, 11)
+    tilt = type("Tilt", (ex.FloorTilt,), {"size_range": (0.005, 0.1)})()
+    one, two = (W.simulated_detection("motion", cond, base, null, gs.alpha, tilt, seed=5, reps=20, sizes=4, threads=t)
+                for t in (1, 2))
+    assert one == two and len(one["power_by_size"]) >= 2
+
+
 _HEAD = "from kilobot_twin.gap.effects import Effect\n"
 _TILT = ("class T(Effect):\n    name, kind = 'tilt2', 'motion'\n    predicts = {'speed': 'pop'}\n"
          "    def explains(self, signal):\n        return signal == 'speed:heading_dependence'\n")
