@@ -1553,8 +1553,7 @@ def simulated_detection(kind: str, cond: Conditions, model: E.TwinModel, null: d
     replicates (default: this null and :data:`POOL_FACTOR` - 1 times as many simulated beside it).
     The pool's parts and the sizes' groups are simulated ``threads`` at a time, each on its own
     seed, so the result does not depend on ``threads`` (on the third world's 3431, 35 x 8 at
-    12 Hz, two threads took this function from 34.4 s to 23.3 s, the whole ``gap`` from 57.4 s to
-    44.2 s).
+    12 Hz, two threads took the whole ``gap`` with the user's tilt from 57.4 s to 44.2 s).
     The threshold (the null's mean plus z of its sd) scatters from null to null. When the
     heading dependence was read as a log F (2 degrees of freedom: long tails) rather than on its
     normal scale (:func:`_f2_normal_score`), the size read at this null's threshold alone was
