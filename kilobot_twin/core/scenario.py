@@ -20,6 +20,9 @@ from .kinematics import MotorConfig
 from .light import ConeField, LightField, SensorModel, field_from_dict, field_to_dict
 
 
+#: The largest floor slope a scenario takes (a robot downhill at 1.9x its speed, uphill at 0.1x).
+MAX_FLOOR_TILT = 0.9
+
 @dataclass(frozen=True)
 class StartSpec:
     """Where robots start.
@@ -314,8 +317,9 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "") -> Scenario:
     if "light" in data:
         kw["light"] = field_from_dict(data["light"], source)
     sc = Scenario(**kw)
-    if not -0.9 <= sc.floor_tilt <= 0.9:
-        raise ConfigError("floor_tilt", f"{sc.floor_tilt} is outside [-0.9, 0.9]", "give the relative speed change downhill", source)
+    if not -MAX_FLOOR_TILT <= sc.floor_tilt <= MAX_FLOOR_TILT:
+        raise ConfigError("floor_tilt", f"{sc.floor_tilt} is outside [-{MAX_FLOOR_TILT}, {MAX_FLOOR_TILT}]",
+                          "give the relative speed change downhill", source)
     if sc.n_steps < 1:
         raise ConfigError("duration_s", "shorter than one step", "make duration_s at least dt_s", source)
     return sc

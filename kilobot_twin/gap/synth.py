@@ -18,7 +18,7 @@ from ..recording import measured
 from ..core import sim
 from ..core.constants import WHEEL_SEPARATION_M
 from ..core.kinematics import MotorConfig
-from ..core.scenario import scenario_from_dict
+from ..core.scenario import MAX_FLOOR_TILT, scenario_from_dict
 from ..core.traits import SwarmTraits
 from ..errors import ConfigError
 from .observe import Observation, correlated_noise, jittered_times, noisy_positions
@@ -138,7 +138,7 @@ def _hidden_traits(kind, effects, n, rng, s: float = 1.0):
         if "motion_noise" in effects:
             tr["sigma_omega"] = tr["sigma_omega"] * np.exp(rng.normal(0, 0.8 * s, n))
         if "floor_tilt" in effects:
-            extra["floor_tilt"] = {"amplitude": min(0.15 * s, 0.9), "direction_rad": float(rng.uniform(-np.pi, np.pi))}
+            extra["floor_tilt"] = {"amplitude": min(0.15 * s, MAX_FLOOR_TILT), "direction_rad": float(rng.uniform(-np.pi, np.pi))}
     elif kind == "light_sweep":
         for k, v in NOMINAL_SENSOR.items():
             tr[k][:] = v

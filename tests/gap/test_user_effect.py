@@ -100,6 +100,24 @@ def test_a_users_effect_is_not_scored_on_null_data_and_its_detectable_size_is_st
     assert "- floor_tilt (yours): detected %.3g (floor slope A" % mde["detection_size"] in (out / "report.md").read_text()
 
 
+def _example_and_base(level):
+    """The example module, and the level dataset's conditions, summaries and fitted base, as the
+    workflow's round 0 has them."""
+    from kilobot_twin.gap import effects as E
+    from kilobot_twin.gap import workflow as W
+    from kilobot_twin.gap.model import measured_summaries
+    from kilobot_twin.recording import measured
+
+    spec = importlib.util.spec_from_file_location("floor_tilt_example", EXAMPLE)
+    ex = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(ex)
+    cond, meas = measured_summaries(measured.load(level))
+    meas = E.Summaries(meas, np.arange(cond.trials))
+    base = W._Fitter(cond, meas, E.nominal_model("motion", cond.robot_ids, cond.forward_speed_m_s), W.GapSettings(),
+                     True).fit((), list(range(cond.trials)))
+    return ex, cond, meas, base
+
+
 @pytest.mark.parametrize("m, lowest", [(120, 0.005), (12, 0.005), (120, 0.05)])
 def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(level, m, lowest, monkeypatch):
     """``simulated_detection`` against theory. The statistic is the log F of a regression of each
@@ -122,19 +140,11 @@ def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(le
     ``at_most``."""
     from scipy import optimize, stats
 
-    from kilobot_twin.gap import effects as E
     from kilobot_twin.gap import workflow as W
-    from kilobot_twin.gap.model import measured_summaries, simulate
-    from kilobot_twin.recording import measured
+    from kilobot_twin.gap.model import simulate
 
-    spec = importlib.util.spec_from_file_location("floor_tilt_example", EXAMPLE)
-    ex = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(ex)
-    cond, meas = measured_summaries(measured.load(level))
+    ex, cond, meas, base = _example_and_base(level)
     gs = W.GapSettings()
-    meas = E.Summaries(meas, np.arange(cond.trials))
-    base = W._Fitter(cond, meas, E.nominal_model("motion", cond.robot_ids, cond.forward_speed_m_s), gs, True).fit(
-        (), list(range(cond.trials)))
     null = {k: v[:m] for k, v in simulate(cond, base, gs.m_null, 11).items()}
     pool = simulate(cond, base, 960, 12)
     reps = W.POWER_REPS if m > 20 else 4 * W.POWER_REPS  # a finer reading where the two thresholds are compared
@@ -194,18 +204,11 @@ def test_the_size_stated_does_not_depend_on_the_threads_it_is_simulated_on(level
     """The workflow simulates the sizes' groups and the pool's parts ``GapSettings.threads`` at a
     time; each has its own seed, so one thread and two give the same curve to the last bit (a
     machine's core count must not change a report)."""
-    from kilobot_twin.gap import effects as E
     from kilobot_twin.gap import workflow as W
-    from kilobot_twin.gap.model import measured_summaries, simulate
-    from kilobot_twin.recording import measured
+    from kilobot_twin.gap.model import simulate
 
-    spec = importlib.util.spec_from_file_location("floor_tilt_example", EXAMPLE)
-    ex = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(ex)
-    cond, meas = measured_summaries(measured.load(level))
+    ex, cond, _, base = _example_and_base(level)
     gs = W.GapSettings()
-    base = W._Fitter(cond, E.Summaries(meas, np.arange(cond.trials)),
-                     E.nominal_model("motion", cond.robot_ids, cond.forward_speed_m_s), gs, True).fit((), list(range(cond.trials)))
     null = simulate(cond, base, 12, 11)
     tilt = type("Tilt", (ex.FloorTilt,), {"size_range": (0.005, 0.1)})()
     one, two = (W.simulated_detection("motion", cond, base, null, gs.alpha, tilt, seed=5, reps=20, sizes=4, threads=t)
