@@ -216,6 +216,41 @@ def test_the_size_stated_does_not_depend_on_the_threads_it_is_simulated_on(level
     assert one == two and len(one["power_by_size"]) >= 2
 
 
+def test_the_screen_finds_the_size_that_every_replicate_at_every_size_would(level, monkeypatch):
+    """Each size is screened on a fifth of its replicates, and the rest are simulated only where
+    the screen might come from a share of 80 %. The size is then the one the whole search would
+    find: the same replicates (each group's screen and its rest have their own seeds) and, at the
+    size below the crossing, all of them. Here an effect whose share steps from about 20 % to
+    100 % between two sizes (a weak tilt below 0.03, a strong one above) puts a screened size
+    right below the crossing; the search without a screen (``SCREEN_LEVEL`` 0) is the reference."""
+    from kilobot_twin.gap import workflow as W
+    from kilobot_twin.gap.model import simulate
+
+    ex, cond, _, base = _example_and_base(level)
+    gs = W.GapSettings()
+    null, pool = simulate(cond, base, 24, 11), simulate(cond, base, 96, 12)
+
+    class Step(ex.FloorTilt):
+        def at_size(self, model, size, rng):
+            return super().at_size(model, 0.006 if size < 0.03 else 0.05, rng)
+
+    def search():
+        return W.simulated_detection("motion", cond, base, null, gs.alpha, Step(), seed=5, pool=pool, threads=2)
+
+    screened = search()
+    monkeypatch.setattr(W, "SCREEN_LEVEL", 0.0)
+    whole = search()
+    sizes = [s for s, _ in whole["power_by_size"]]
+    assert sizes == [s for s, _ in screened["power_by_size"]]
+    below = max(i for i, s in enumerate(sizes) if s < 0.03)
+    assert whole["power_by_size"][below + 1][1] == 1.0 and 0.05 < whole["power_by_size"][below][1] < 0.45
+    assert screened["replicates_by_size"][below - 1] == 20 and screened["replicates_by_size"][below] == 100
+    assert screened["detection_size"] == whole["detection_size"]
+    full = [i for i, n in enumerate(screened["replicates_by_size"]) if n == 100]
+    assert [screened["power_by_size"][i] for i in full] == [whole["power_by_size"][i] for i in full]
+    assert set(whole["replicates_by_size"]) == {100} and sum(screened["replicates_by_size"]) < 0.6 * 100 * len(sizes)
+
+
 _HEAD = "from kilobot_twin.gap.effects import Effect\n"
 _TILT = ("class T(Effect):\n    name, kind = 'tilt2', 'motion'\n    predicts = {'speed': 'pop'}\n"
          "    def explains(self, signal):\n        return signal == 'speed:heading_dependence'\n")
