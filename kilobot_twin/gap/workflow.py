@@ -1529,8 +1529,9 @@ POOL_FACTOR = 4
 #: each halving the size at least (a range guessed 100x too high is still searched down).
 BELOW_RANGE_STEPS = 8
 #: :func:`simulated_detection` screens each size on the first 1 / SCREEN_PARTS of each group's
-#: replicates (20 of 100), and simulates the rest only where the screen flags more than a share of
-#: ``power`` would flag with probability SCREEN_LEVEL (binomial; 9 of 20 at 80 %).
+#: replicates (20 of 100), and simulates the rest only where the screen flags more replicates than
+#: a share of ``power`` flags with a probability below SCREEN_LEVEL (binomial: more than 9 of 20 at
+#: 80 %, which a share of 80 % falls to with probability 0.0006).
 SCREEN_PARTS, SCREEN_LEVEL = 5, 1e-3
 
 
@@ -1600,12 +1601,12 @@ def simulated_detection(kind: str, cond: Conditions, model: E.TwinModel, null: d
     pick = np.argsort(draw, axis=1)[:, :m]  # m without replacement, per replicate
 
     screen = max(1, per // SCREEN_PARTS)  # each group's first replicates: the screen's
-    if explained.any():  # the most replicates of the screen's that a size flagged with ``power`` leaves unflagged...
+    if explained.any():  # the screen's flags at most which rule out a share of ``power`` (binomial, SCREEN_LEVEL)
         from scipy import stats as _stats
 
         cut = int(_stats.binom.ppf(SCREEN_LEVEL, groups * screen, power)) - 1
-    else:  # (nothing the effect explains is tested: nothing is flagged at any size)
-        cut = -1
+    else:  # nothing the effect explains is tested, so nothing is flagged at any size: screens only
+        cut = groups * screen
 
     def group(g, size, part):  # each group its own draw of the effect (a floor's direction, robots' values)
         ss = np.random.SeedSequence(seed, spawn_key=(g,))
