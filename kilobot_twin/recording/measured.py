@@ -18,7 +18,6 @@ import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -341,15 +340,18 @@ def write(folder: str | Path, meta: dict, tracks: dict) -> Path:
     required, optional = COLUMNS[meta["kind"]]
     some = next(iter(tracks.values()))
     cols = list(required) + [o for o in optional if o in some.values]
+    # Column by column, then joined: the csv module's rows (no cell needs quotes, lines end in
+    # CRLF) in a third of the time of writing them row by row (the blink synth: 0.98 -> 0.36 s).
+    keys = sorted(tracks)
+    parts = []
+    for (trial, robot) in keys:
+        tr = tracks[(trial, robot)]
+        cells = [[str(trial)] * len(tr), [str(robot)] * len(tr), [f"{t:.4f}" for t in tr.t_s.tolist()]]
+        for c in cols[3:]:
+            v = np.asarray(tr.values[c]).tolist()
+            cells.append([("red", "blue")[int(x)] for x in v] if c == "led" else [f"{x:.6g}" for x in v])
+        parts.append("".join(",".join(row) + "\r\n" for row in zip(*cells)))
     with (folder / "observations.csv").open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(cols)
-        for (trial, robot) in sorted(tracks):
-            tr = tracks[(trial, robot)]
-            for i in range(len(tr)):
-                row: list[Any] = [trial, robot, f"{tr.t_s[i]:.4f}"]
-                for c in cols[3:]:
-                    v = tr.values[c][i]
-                    row.append(("red", "blue")[int(v)] if c == "led" else f"{v:.6g}")
-                w.writerow(row)
+        f.write(",".join(cols) + "\r\n")
+        f.writelines(parts)
     return folder

@@ -192,3 +192,36 @@ def test_any_other_file_goes_to_the_row_by_row_reader(extra):
     assert measured._plain_tracks(CSV, 5,
                                   {c: j for j, c in enumerate(CSV.split("\n")[0].split(","))},
                                   {"trials": 1, "robots": [0, 1]}) is not None
+
+
+def test_write_gives_the_rows_that_the_csv_module_reads_back_cell_for_cell(tmp_path):
+    """``write`` against the standard library's csv reader and cells written out by hand: rows
+    sorted by trial, robot and time whatever order the tracks come in, times to 4 decimals,
+    values to 6 significant digits (small ones in exponent form), LED states as colours, and
+    lines ending in CRLF, as the csv module writes them."""
+    import csv
+
+    motion = {(1, 0): measured.Track(np.array([0.0, 0.1]), {"x_m": np.array([1 / 3, -2.5e-7]),
+                                                            "y_m": np.array([0.0113, 12345678.0]),
+                                                            "theta_rad": np.array([-np.pi, 0.5])}),
+              (0, 2): measured.Track(np.array([0.05]), {"x_m": np.array([1.0]), "y_m": np.array([-0.0]),
+                                                        "theta_rad": np.array([2.0])})}
+    meta = {"kind": "motion", "robots": [0, 2], "trials": 2, "dt_s": 0.05, "duration_s": 0.1,
+            "behavior": "straight", "nominal_speed_m_s": 0.0113}
+    d = measured.write(tmp_path / "m", meta, motion)
+    raw = (d / "observations.csv").read_bytes()
+    assert raw.count(b"\r\n") == 4 and raw.count(b"\n") == 4
+    with open(d / "observations.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    assert rows == [["trial", "robot_id", "t_s", "x_m", "y_m", "theta_rad"],
+                    ["0", "2", "0.0500", "1", "-0", "2"],
+                    ["1", "0", "0.0000", "0.333333", "0.0113", "-3.14159"],
+                    ["1", "0", "0.1000", "-2.5e-07", "1.23457e+07", "0.5"]]
+    blink = {(0, 0): measured.Track(np.array([0.0, 0.5, 1.0]), {"led": np.array([0.0, 1.0, 1.0])})}
+    d = measured.write(tmp_path / "b", {"kind": "blink", "robots": [0], "trials": 1, "dt_s": 0.5,
+                                        "duration_s": 1.0, "half_period_ticks": 32,
+                                        "nominal_tick_hz": 31}, blink)
+    with open(d / "observations.csv", newline="") as f:
+        assert list(csv.reader(f)) == [["trial", "robot_id", "t_s", "led"], ["0", "0", "0.0000", "red"],
+                                       ["0", "0", "0.5000", "blue"], ["0", "0", "1.0000", "blue"]]
+    assert measured.load(d).track(0, 0).values["led"].tolist() == [0.0, 1.0, 1.0]
