@@ -359,10 +359,12 @@ def pool_intensities(m, n, a: float, b: float, iterations: int = 25, second: tup
             # then -1/2 sum_i dof_i (ln g(f) + E[ln shape_i]) + const; the best f of the grid.
             post = like * prior[..., None, :]
             post = post / post.sum(-1, keepdims=True)  # (..., N, G)
-            inv, eln = post @ inv_t, post @ log_t  # (..., N, F): E[1 / shape], E[ln shape] per robot and share
+            # sum_i dof_i v_i E_i[1 / shape] and sum_i dof_i E_i[ln shape] for each share: the
+            # robots summed first, (..., G) @ (G, F), not (..., N, G) @ (G, F) per robot
+            wv, wd = ((q[..., None, :] @ post)[..., 0, :] for q in (d2 * v2, d2))  # (..., G)
             dsum = np.maximum(d2.sum(-1, keepdims=True), 1e-300)  # (..., 1)
-            g_f = ((d2 * v2)[..., None] * inv).sum(-2) / dsum  # (..., F)
-            obj = -0.5 * (dsum * np.log(np.maximum(g_f, 1e-300)) + (d2[..., None] * eln).sum(-2))
+            g_f = (wv @ inv_t) / dsum  # (..., F)
+            obj = -0.5 * (dsum * np.log(np.maximum(g_f, 1e-300)) + wd @ log_t)
             j = np.argmax(obj, axis=-1)[..., None]
             f = np.take_along_axis(np.broadcast_to(fs[:, 0], obj.shape), j, -1)
             g = np.take_along_axis(g_f, j, -1)
