@@ -470,6 +470,47 @@ def test_the_gap_s_bootstrap_is_centred_on_its_value_where_the_level_is_far_off(
     assert lo < value < hi
 
 
+def test_the_bootstrap_s_resamples_at_once_are_each_resample_by_hand():
+    """``_gap`` with a (B, n) array of resampled robots gives each resample's gap, here computed
+    resample by resample with plain NumPy: per part, the mean deviance over every (summary,
+    trial, robot) cell that is not missing (a robot missing from a trial here, as the held-out
+    predictions leave it: NaN in both) less a right
+    model's mean; the level part on each trial's resampled mean, less the excess the resampling
+    adds (:func:`resampled_excess`, of the whole sample's level z and robot variance); the
+    parts averaged."""
+    from kilobot_twin.gap.workflow import DEVIANCE_MEAN, _gap, deviance, resampled_excess
+
+    rng = np.random.default_rng(11)
+    K, n, B = 3, 6, 40
+    meas, pred, yard = {}, {}, {}
+    for c, shift in (("a", 0.5), ("b", 3.0)):
+        meas[c] = shift + rng.standard_normal((K, n))
+        pred[c] = {"mean": 0.3 * rng.standard_normal((K, n)), "sd": rng.uniform(0.5, 2.0, (K, n)),
+                   "sd_level": rng.uniform(0.5, 2.0, K)}
+        yard[c] = {"mean": pred[c]["mean"], "sd": rng.uniform(0.5, 2.0, (K, n)), "sd_level": rng.uniform(0.5, 2.0, K)}
+    meas["b"][1, 2] = pred["b"]["mean"][1, 2] = np.nan  # a robot missing from a trial: no prediction either
+    idx = rng.integers(0, n, (B, n))
+    got = _gap(meas, pred, yard, ["a", "b"], idx)
+    assert got.shape == (B,)
+    for r, rows in enumerate(idx):
+        track, own, level = [], [], []
+        for c in ("a", "b"):
+            m, mu = meas[c][:, rows], pred[c]["mean"][:, rows]
+            track += list(deviance((m - mu) / yard[c]["sd"][:, rows]).ravel())
+            own += list(deviance((m - mu) / pred[c]["sd"][:, rows]).ravel())
+            for k in range(K):
+                seen = ~np.isnan(meas[c][k])
+                z_all = (meas[c][k, seen].mean() - pred[c]["mean"][k, seen].mean()) / (yard[c]["sd_level"][k] / np.sqrt(seen.sum()))
+                v = np.var(meas[c][k, seen] - pred[c]["mean"][k, seen]) / yard[c]["sd_level"][k] ** 2
+                ok = ~np.isnan(m[k])
+                z = (m[k, ok].mean() - mu[k, ok].mean()) / (yard[c]["sd_level"][k] / np.sqrt(ok.sum()))
+                level.append(deviance(z) - resampled_excess(z_all, v))
+        hand = np.mean([np.nanmean(p) - DEVIANCE_MEAN for p in (track, own, level)])
+        assert got[r] == pytest.approx(hand, abs=1e-12), r
+        if r < 3:
+            assert _gap(meas, pred, yard, ["a", "b"], rows) == pytest.approx(hand, abs=1e-12)
+
+
 def test_where_the_gap_is_by_hand():
     """The gap by summary and part (the report's "where the gap is"), against hand-computed
     deviances: every robot 2 predictive sds above a base that predicts 0, in a trial of 4 robots
