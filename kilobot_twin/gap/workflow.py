@@ -841,8 +841,8 @@ def _gap(meas, pred, yard, comps, robots=None, parts=("track", "own", "level")):
       sees population-level errors that single tracks hide.
 
     ``robots`` resamples robots for the bootstrap: indices (n,), which may repeat (a float, as
-    without), or (B, n), B resamples at once (an array of B; the bootstrap's 1,000 resamples in
-    one pass of arrays rather than 1,000 calls). ``parts`` chooses parts.
+    without), or (B, n), B resamples at once (an array of B: ``GapSettings.boot`` resamples in one
+    pass of arrays rather than a call each). ``parts`` chooses parts.
     """
     many = robots is not None and np.ndim(robots) == 2
     sums = {p: 0.0 for p in parts}
