@@ -820,7 +820,8 @@ def resampled_excess(z, v):
 
 def _level_z(m, mu, sd_level):
     """Each trial's level residual in predictive sds: (mean over robots of measured - of
-    predicted) / (sd_level / sqrt(robots seen)); m, mu (K, N) -> (K,)."""
+    predicted) / (sd_level / sqrt(robots seen)); m, mu (K, N) -> (K,), or (K, B, N) -> (K, B)
+    (sd_level then (K, 1))."""
     n = np.isfinite(m).sum(axis=-1)
     return (np.nanmean(m, axis=-1) - np.nanmean(mu, axis=-1)) / (sd_level / np.sqrt(n))
 
@@ -844,14 +845,13 @@ def _gap(meas, pred, yard, comps, robots=None, parts=("track", "own", "level")):
     without), or (B, n), B resamples at once (an array of B: ``GapSettings.boot`` resamples in one
     pass of arrays rather than a call each). ``parts`` chooses parts.
     """
-    many = robots is not None and np.ndim(robots) == 2
-    sums = {p: 0.0 for p in parts}
-    counts = {p: 0 for p in parts}
+    n = meas[comps[0]].shape[1]
+    rows = np.arange(n)[None] if robots is None else np.atleast_2d(robots)  # (B, n); B = 1 but for a batch
+    sums, counts = dict.fromkeys(parts, 0.0), dict.fromkeys(parts, 0)
     for c in comps:
         m, mu = meas[c], pred[c]["mean"]
-        sd, sd_own = yard[c]["sd"], pred[c]["sd"]
-        sd_level = np.asarray(yard[c]["sd_level"], dtype=float)
-        extra = 0.0
+        sd_level = np.broadcast_to(np.asarray(yard[c]["sd_level"], dtype=float), m.shape[:1])  # (K,)
+        extra = np.zeros(m.shape[:1])
         if robots is not None:
             # A resampled mean over robots varies by the robots' spread / n more than the mean
             # does, which raises its expected deviance: that much is taken off the level part, so
@@ -859,21 +859,17 @@ def _gap(meas, pred, yard, comps, robots=None, parts=("track", "own", "level")):
             with np.errstate(all="ignore"):
                 v = np.nanvar(m - mu, axis=1) / sd_level ** 2
                 extra = resampled_excess(_level_z(m, mu, sd_level), v)
-        # (K, B, n): the resamples on an axis of their own (B = 1 without)
-        take = (lambda a: a[:, robots]) if many else (lambda a: a[:, None, :] if robots is None else a[:, None, robots])
-        m, mu, sd, sd_own = take(m), take(mu), take(sd), take(sd_own)
+        # (K, B, n): the resamples on an axis of their own
+        m, mu, sd, sd_own = (a[:, rows] for a in (m, mu, yard[c]["sd"], pred[c]["sd"]))
         with np.errstate(all="ignore"):
             terms = {"track": deviance((m - mu) / sd), "own": deviance((m - mu) / sd_own),
-                     "level": deviance(_level_z(m, mu, sd_level[..., None] if sd_level.ndim else sd_level))
-                     - (extra[:, None] if np.ndim(extra) else extra)}
-        for p in parts:
-            t = terms[p]
-            axes = tuple(a for a in range(t.ndim) if a != 1)  # all but the resamples'
-            sums[p] = sums[p] + np.nansum(t, axis=axes)
-            counts[p] = counts[p] + (~np.isnan(t)).sum(axis=axes)
+                     "level": deviance(_level_z(m, mu, sd_level[:, None]))[..., None] - extra[:, None, None]}
+        for p in parts:  # sums and counts over (K, n) per resample
+            sums[p] = sums[p] + np.nansum(terms[p], axis=(0, 2))
+            counts[p] = counts[p] + (~np.isnan(terms[p])).sum(axis=(0, 2))
     with np.errstate(all="ignore"):
         g = np.mean([sums[p] / counts[p] - DEVIANCE_MEAN for p in parts], axis=0)  # (B,)
-    return g if many else float(g[0])
+    return g if np.ndim(robots) == 2 else float(g[0])
 
 
 #: The parts of the gap (:func:`_gap`), as the report names them.
