@@ -252,9 +252,10 @@ def _group_sigint_try(tmp_path, k: int) -> tuple[int, list, bool, str]:
     return codes, logs, (out / "metadata.yaml").exists(), out
 
 
-@pytest.mark.parametrize("tries", [pytest.param(10, marks=pytest.mark.slow), 2])
+@pytest.mark.parametrize("tries", [pytest.param(10, marks=pytest.mark.slow), 1])
 def test_sigint_to_the_whole_process_group_finalises_the_bag(tmp_path, tries):
-    """10 of 10 (slow; 2 by default): exit 0, no traceback, metadata.yaml, a bag other tools read."""
+    """10 of 10 (slow, each at its own moment; 1 by default, 19 s of a slow machine's suite):
+    exit 0, no traceback, metadata.yaml, a bag other tools read."""
     for k in range(tries):
         codes, logs, finalised, out = _group_sigint_try(tmp_path, k)
         assert codes == [0, 0, 0, 0], (k, codes, logs)
