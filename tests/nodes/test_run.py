@@ -334,12 +334,18 @@ rclpy.init()
 n = Node("probe")
 data = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-got = {}
+got, subs = {}, []
 for i in map(int, sys.argv[2].split(",")):
     for kind, cls in (("pose", PoseStamped), ("light", Illuminance), ("led", ColorRGBA), ("clock", TimeReference)):
         topic = f"/kilobot_{i}/{kind}"
         got[topic] = []
-        n.create_subscription(cls, topic, lambda d, topic=topic: got[topic].append(bytes(d).hex()), data, raw=True)
+        subs.append(n.create_subscription(cls, topic, lambda d, topic=topic: got[topic].append(bytes(d).hex()), data, raw=True))
+# The world's gate sees this node on the graph, which does not say that the swarm's writers have
+# matched these readers (discovery is per pair of processes): under a loaded machine the run had
+# ended before they did. So the gate's topic is subscribed only once every reader has its writer.
+end = time.monotonic() + 60
+while not all(s.get_publisher_count() > 0 for s in subs) and time.monotonic() < end:
+    rclpy.spin_once(n, timeout_sec=0.05)
 n.create_subscription(PointCloud2, "/swarm/robots", lambda d: None, data, raw=True)  # what the world's gate asks
 state = {}
 n.create_subscription(String, "/world/state", lambda m: state.update(json.loads(m.data)), latched)
