@@ -241,9 +241,8 @@ def test_a_swarm_wide_shift_from_trial_to_trial_stays_in_the_level_gap(tmp_path)
     rounding, and the per trial level of the offset must show it (above 4 sds, sqrt(2 / K), of
     a right model's), as before the shared rounding was let into the level's spread. On the
     world's fixed shape (12 robots x 4 trials at 10 Hz: 7 s alone; the seed's own 29 x 8 at 20 Hz
-    took 25-27 s in the suite). Broken
-    (the shared part taken whatever the noise): the level reads 0.32 against 2.83 and this
-    fails (0.18 on the larger shape)."""
+    took 25-27 s in the suite). Broken (the shared part taken whatever the noise): the level
+    reads 0.32 against 2.83 and this fails (0.18 on the larger shape)."""
     import csv
 
     from kilobot_twin.gap.workflow import GapSettings, data_reading_noise, run_gap
