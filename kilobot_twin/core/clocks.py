@@ -49,8 +49,14 @@ def kuramoto_correction(ticks, adjacency, coupling_per_s: float, period_ticks: f
     ticks : ndarray, shape (..., N)
     adjacency : ndarray of bool, shape (..., N, N)
     """
-    phi = (2 * np.pi / period_ticks) * ticks
-    diff = np.sin(phi[..., None, :] - phi[..., :, None])
-    count = adjacency.sum(axis=-1)
-    mean = np.where(count > 0, (diff * adjacency).sum(axis=-1) / np.maximum(count, 1), 0.0)
+    # sum_j A_ij sin(phi_j - phi_i) = cos phi_i (A sin phi)_i - sin phi_i (A cos phi)_i: two
+    # mat-vecs instead of N^2 sines. The phase is reduced to one period first, so a clock that
+    # has run for hours keeps its digits.
+    phi = (2 * np.pi / period_ticks) * np.mod(ticks, period_ticks)
+    s, c = np.sin(phi), np.cos(phi)
+    a = adjacency.astype(float)
+    pulled = a @ np.stack([s, c, np.ones_like(s)], axis=-1)  # (..., N, 3)
+    total = c * pulled[..., 0] - s * pulled[..., 1]
+    count = pulled[..., 2]
+    mean = np.where(count > 0, total / np.maximum(count, 1), 0.0)
     return coupling_per_s * dt_s * mean * (period_ticks / (2 * np.pi))
