@@ -128,7 +128,8 @@ def measured_summaries(ds: measured.Dataset) -> tuple[Conditions, dict]:
         # robot in the noiseless twin than in the data, the speed noise was fitted at 0, and the
         # null dataset's held-out gap was 15.4.) The tracker's noise and grid are read before:
         # a lens stretches them by a few per cent at most.
-        lens = summaries.lens_distortion(x, y, ds.dt_s)
+        lens = summaries.lens_distortion(x, y, ds.dt_s, axis_m=ds.meta.get("camera_axis_m"),
+                                         axis_sd_m=ds.meta.get("camera_axis_sd_m"))
         x, y = summaries.lens_undistort(x, y, lens)
         x, y = x[..., ::q], y[..., ::q]
         observed = np.isfinite(x)

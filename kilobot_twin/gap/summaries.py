@@ -907,7 +907,8 @@ LENS_Z = 5.0
 LENS_AXIS_SD = 0.03
 
 
-def lens_distortion(x, y, dt_s: float, lag_s: float = 4.0, z: float = LENS_Z) -> dict | None:
+def lens_distortion(x, y, dt_s: float, lag_s: float = 4.0, z: float = LENS_Z, axis_m=None,
+                    axis_sd_m: float | None = None) -> dict | None:
     """The camera's residual radial distortion, read off how a robot's chords lengthen across
     the field: a first-order radial lens maps a true position p to c + q (1 + k |q|^2), q = p - c,
     so a chord of true length l in direction u with midpoint m is seen l (1 + k (|q|^2 + 2 (q.u)^2))
@@ -926,6 +927,9 @@ def lens_distortion(x, y, dt_s: float, lag_s: float = 4.0, z: float = LENS_Z) ->
     The centre the chords give (``centre_data_m``, its jackknife se ``centre_se_m``) is weighed
     against a prior at the middle of the field the positions span (``centre_prior_m``, sd
     :data:`LENS_AXIS_SD` of its extent: ``centre_prior_sd_m``), each by its precision: ``centre_m``.
+    Where the user knows where the camera's axis meets the floor (``axis_m``, (x, y) in m; with
+    ``axis_sd_m``, how well, else the same sd), the prior sits there instead: robots that keep to
+    part of the frame put the middle of their span elsewhere.
 
     Returns ``{"k1_per_m2", "centre_m": (cx, cy), "k1_se", "z", ...}`` where |k| stands ``z``
     standard errors from 0, else None (no lens to model)."""
@@ -960,6 +964,10 @@ def lens_distortion(x, y, dt_s: float, lag_s: float = 4.0, z: float = LENS_Z) ->
     se_c = np.asarray(se_h, dtype=float) / (2 * abs(k))
     lo, hi = (np.nanpercentile(np.stack([x.ravel(), y.ravel()]), q, axis=1) for q in (0.5, 99.5))
     prior, tau = (lo + hi) / 2, LENS_AXIS_SD * (hi - lo)
+    if axis_m is not None:
+        prior = np.asarray(axis_m, dtype=float)
+    if axis_sd_m is not None:
+        tau = np.full(2, float(axis_sd_m))
     w = tau**2 / (tau**2 + se_c**2)
     data_c = np.asarray(c, dtype=float)
     c = tuple(prior + w * (data_c - prior))

@@ -1945,7 +1945,9 @@ def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
                 **({"pixel_m": [float(g[0]) for g in cond.lattice]} if cond.lattice is not None else {}),
                 **({"lens_k1_per_m2": cond.lens["k1_per_m2"], "lens_centre_m": list(cond.lens["centre_m"]),
                     "lens_centre_from_data_m": list(cond.lens["centre_data_m"]),
-                    "lens_centre_se_m": list(cond.lens["centre_se_m"])}
+                    "lens_centre_se_m": list(cond.lens["centre_se_m"]),
+                    "lens_centre_prior_m": list(cond.lens["centre_prior_m"]),
+                    "lens_centre_prior_sd_m": list(cond.lens["centre_prior_sd_m"])}
                    if cond.lens is not None else {})}
     if base.kind == "light_sweep":
         # The twin's reading noise is per ADC sample, and a reading averages ``samples`` of them:

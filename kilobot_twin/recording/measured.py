@@ -167,6 +167,17 @@ def load_meta(folder: Path) -> dict:
         if h < 1 or not f > 0:
             raise ConfigError(f"{where}: half_period_ticks", "must be >= 1 with a positive nominal_tick_hz",
                               "e.g. half_period_ticks: 30, nominal_tick_hz: 31")
+    if "camera_axis_m" in meta:  # motion: where the camera's optical axis meets the floor
+        v = meta["camera_axis_m"]
+        if (not isinstance(v, list) or len(v) != 2
+                or any(isinstance(a, bool) or not isinstance(a, (int, float)) or not math.isfinite(a) for a in v)):
+            raise ConfigError(f"{where}: camera_axis_m", f"expected [x, y] in metres, got {v!r}",
+                              "give the floor point under the camera's optical axis, e.g. camera_axis_m: [0.02, -0.01]")
+    if "camera_axis_sd_m" in meta:
+        v = meta["camera_axis_sd_m"]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (v > 0 and math.isfinite(v)):
+            raise ConfigError(f"{where}: camera_axis_sd_m", f"expected a positive number, got {v!r}",
+                              "give how well camera_axis_m is known, in metres, e.g. 0.01")
     if "tracking_noise_m" in meta:
         v = meta["tracking_noise_m"]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or v < 0:

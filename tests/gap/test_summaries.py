@@ -8,7 +8,8 @@ import pytest
 from kilobot_twin.core import sim
 from kilobot_twin.core.traits import SwarmTraits, draw_population
 from kilobot_twin.gap import summaries, synth
-from kilobot_twin.gap.model import blink_leds
+from kilobot_twin.gap.model import blink_leds, measured_summaries
+from kilobot_twin.recording import measured
 
 from . import unicycle
 
@@ -684,3 +685,45 @@ def test_a_lens_s_centre_is_weighed_against_the_middle_of_the_frame():
     g = summaries.lens_distortion(*_framed(x, y, 0.45), 0.1)
     prior = np.array(g["centre_prior_m"])
     assert np.hypot(*(np.array(g["centre_m"]) - c)) < 0.25 * np.hypot(*(prior - c)), g
+
+
+def test_a_camera_axis_the_user_gives_is_the_lens_centre_s_prior(tmp_path):
+    """Robots in an arena to one side of the camera's axis (x in 0..0.45 m, the axis near x = 0,
+    drawn about (0, 0) with sd 1 cm; 40 worlds): the middle of their span is 22 cm off the
+    axis, many of the prior's sds, and the chords pin the centre to 5-50 cm only there. Given
+    where the axis meets the floor and how well (``axis_m``, ``axis_sd_m``), the weighed
+    centre's squared errors over the posterior variance average 1 (chi-square with 80 degrees of
+    freedom: 0.52-1.70 with probability 1 - 2e-4); weighed against the span's middle they
+    average far above it. The data's centre over its se stays a standard normal. Read from a
+    dataset's meta.yaml (``camera_axis_m``, ``camera_axis_sd_m``), the axis reaches the fit."""
+    rng = np.random.default_rng(43)
+    given, middle, z = [], [], []
+    for _ in range(40):
+        c = rng.normal(0.0, 0.01, 2)
+        k = rng.choice([-1.0, 1.0]) * rng.uniform(0.03, 0.08)
+        x, y = _lens_world(rng, k, c, 0.003)
+        out = (x < 0) | (x > 0.45) | (np.abs(y) > 0.45)
+        x, y = np.where(out, np.nan, x), np.where(out, np.nan, y)
+        g = summaries.lens_distortion(x, y, 0.1, z=0.0, axis_m=(0.0, 0.0), axis_sd_m=0.01)
+        f = summaries.lens_distortion(x, y, 0.1, z=0.0)
+        assert g["centre_prior_m"] == (0.0, 0.0) and g["centre_prior_sd_m"] == (0.01, 0.01)
+        se = np.array(g["centre_se_m"])
+        for r, into in ((g, given), (f, middle)):
+            into.extend((np.array(r["centre_m"]) - c) ** 2 * (1 / se**2 + 1 / np.array(r["centre_prior_sd_m"]) ** 2))
+        z.extend((np.array(g["centre_data_m"]) - c) / se)
+    assert 0.52 < np.mean(given) < 1.70, np.mean(given)
+    assert np.mean(middle) > 10, np.mean(middle)
+    assert 0.75 < np.std(z, ddof=1) < 1.3 and abs(np.mean(z)) < 4 / np.sqrt(80), (np.mean(z), np.std(z, ddof=1))
+
+    K, N, T, dt = 4, 12, 600, 0.1
+    x, y = _lens_world(rng, 0.06, (0.0, 0.0), 0.003, K=K, N=N, T=T, dt=dt)
+    t = np.arange(T) * dt
+    tracks = {(i, j): measured.Track(t, {"x_m": x[i, j], "y_m": y[i, j]}) for i in range(K) for j in range(N)}
+    meta = {"kind": "motion", "robots": list(range(N)), "trials": K, "dt_s": dt, "duration_s": T * dt,
+            "behavior": "straight", "nominal_speed_m_s": 0.008}
+    plain, _ = measured_summaries(measured.load(measured.write(tmp_path / "plain", meta, tracks)))
+    more = {"camera_axis_m": [0.05, -0.02], "camera_axis_sd_m": 0.004}
+    cond, _ = measured_summaries(measured.load(measured.write(tmp_path / "axis", {**meta, **more}, tracks)))
+    assert plain.lens["centre_prior_sd_m"][0] > 0.01  # 3 % of the span
+    assert cond.lens["centre_prior_m"] == (0.05, -0.02) and cond.lens["centre_prior_sd_m"] == (0.004, 0.004)
+    assert cond.lens["centre_data_m"] == plain.lens["centre_data_m"] and cond.lens["centre_m"] != plain.lens["centre_m"]

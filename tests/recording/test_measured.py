@@ -108,11 +108,20 @@ def test_bad_rows_name_file_line_column(tmp_path, csv, where):
     (META.replace("trials: 1", "trials: zero"), "trials"),
     (META.replace("behavior: straight\n", ""), "behavior"),
     (META.replace("measured-v1", "measured-v9"), "format"),
+    (META + "camera_axis_m: [0.1]\n", "camera_axis_m"),
+    (META + "camera_axis_m: [0.1, .nan]\n", "camera_axis_m"),
+    (META + "camera_axis_m: 0.1\n", "camera_axis_m"),
+    (META + "camera_axis_m: [0.1, 0.0]\ncamera_axis_sd_m: 0\n", "camera_axis_sd_m"),
 ])
 def test_bad_meta_names_the_key(tmp_path, meta, field):
     with pytest.raises(ConfigError) as e:
         measured.load(make(tmp_path, meta=meta))
     assert f"meta.yaml: {field}" in str(e.value)
+
+
+def test_a_camera_axis_is_read_where_it_is_given(tmp_path):
+    ds = measured.load(make(tmp_path, meta=META + "camera_axis_m: [0.1, -0.05]\ncamera_axis_sd_m: 0.01\n"))
+    assert ds.meta["camera_axis_m"] == [0.1, -0.05] and ds.meta["camera_axis_sd_m"] == 0.01
 
 
 def test_cli_gap_on_bad_dataset_exits_2_with_one_line(tmp_path):
