@@ -34,7 +34,7 @@ from ..ros import convert, params, qos
 from ..ros.executors import run_node
 from ..ros.latched import LatchedReader
 from ..ros.model import RobotModel, SwarmModel
-from ..ros.publishing import ReaderAwarePublisher
+from ..ros.publishing import MatchReport, ReaderAwarePublisher
 from ..core.scenarios import clock_period_from_document, parse_world_document, scenario_from_document
 from ..ros.stepping import StepRule
 
@@ -108,7 +108,9 @@ class RobotNode(Node):
         self.clocks_published = 0
         self.clock_period_s = 0.0
         self.done = False
+        self.match_report = None
         if standalone:
+            self.match_report = MatchReport(self, lambda: (self.pub_pose, self.pub_light, self.pub_led, self.pub_clock))
             self.world_reader = LatchedReader(self, String, f"{self.world}/scenario", self._on_world_msg)
             self.state_reader = LatchedReader(self, String, f"{self.world}/state", self._on_state_msg)
             self.create_subscription(Clock, "/clock", self._on_clock_msg, qos.CLOCK)
@@ -165,6 +167,8 @@ class RobotNode(Node):
 
     def set_state(self, doc: dict) -> None:
         state = doc.get("state")
+        if state != "waiting" and self.match_report is not None:
+            self.match_report.stop()  # the world's gate has opened
         if state == "running" and self.mode == "realtime" and self.timer is None and not self.done:
             self.start_wall_ns = int(doc["start_wall_ns"])
             self.publish_sample(self._wall_stamp())

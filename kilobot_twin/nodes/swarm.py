@@ -42,6 +42,7 @@ from ..ros import convert, params, qos
 from ..ros.executors import make_executor, release, run_node, spin
 from ..ros.latched import LatchedReader
 from ..ros.model import SwarmModel
+from ..ros.publishing import MatchReport
 from ..ros.stepping import StepRule
 from ..core.scenarios import (clock_period_from_document, load_swarm_traits, parse_world_document,
                              scenario_from_document)
@@ -81,6 +82,8 @@ class SwarmNode(Node):
         self.traits = traits.subset(np.array_split(np.arange(len(traits)), self.slices)[self.slice_index])
 
         self.robots: list[RobotNode] = []
+        self.match_report = None
+        self.gate_open = False  # the world's state has left "waiting"
         self.model: SwarmModel | None = None
         self.world_doc: dict | None = None
         self.world_ready = Future()
@@ -137,6 +140,8 @@ class SwarmNode(Node):
             node.set_world(doc, shared=(self.model, col) if self.model is not None else None)
             self.robots.append(node)
             executor.add_node(node)
+        if not self.gate_open:
+            self.match_report = MatchReport(self, self._data_writers)
         self.rss_after_robots = _rss_bytes()
         self.get_logger().info(f"{len(self.robots)} robot(s) up, {self.mode}"
                                f"{' (batched physics)' if self.model is not None else ''}, "
@@ -144,9 +149,17 @@ class SwarmNode(Node):
 
     # --- time ------------------------------------------------------------------------------------------
 
+    def _data_writers(self) -> list:
+        writers = [p for r in self.robots for p in (r.pub_pose, r.pub_light, r.pub_led, r.pub_clock)]
+        return writers + ([self.pub_bundle, self.pub_cloud] if self.model is not None else [])
+
     def _on_state(self, msg: String) -> None:
         doc = json.loads(msg.data)
         state = doc.get("state")
+        if state != "waiting":
+            self.gate_open = True
+            if self.match_report is not None:
+                self.match_report.stop()  # the world's gate has opened
         if self.model is None or self.mode != "realtime":
             for r in self.robots:
                 r.set_state(doc)

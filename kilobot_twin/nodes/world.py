@@ -16,8 +16,11 @@ Start gate: the world waits until ``robots`` robots are on the graph and every n
 ``wait_for_nodes`` (comma-separated, e.g. ``recorder,analysis``) subscribes to each robot's
 ``wait_topics`` (default ``pose,light,led,clock,robots``; ``robots`` is a batched swarm's cloud; a
 node that subscribes to a swarm's ``bundle`` counts as subscribed to its robots' data topics) and
-to every ``/analysis/`` topic on the graph, so that a recording holds every message,
-then ``settle_s`` more. A start that has not come says what it waits for, as a warning every
+to every ``/analysis/`` topic on the graph, and until the writers of those robot topics (or
+of the swarm's bundle or cloud that carries them) have matched as many readers as the world
+sees on them, as their processes report on ``/_kilobot_twin/matched`` (at most
+``match_timeout_s``, default 5 s, then a warning: a reader whose QoS a writer cannot serve never
+matches), so that a recording holds every message, then ``settle_s`` more. A start that has not come says what it waits for, as a warning every
 ``gate_report_s`` seconds (default 10; 0: never). Then:
 
 - ``lockstep``: publish /clock for step k once every robot has published its pose for step
@@ -82,6 +85,7 @@ class WorldNode(Node):
         self.ack_timeout_s = params.number(self, "ack_timeout_s", 5.0, minimum=0.0, strict=True)
         self.clock_period_s = params.number(self, "clock_period_s", 1.0, minimum=0.0)
         self.gate_report_s = params.number(self, "gate_report_s", 10.0, minimum=0.0)
+        self.match_timeout_s = params.number(self, "match_timeout_s", 5.0, minimum=0.0)
         self.await_recorder = "recorder" in self.wait_for_nodes and self.mode == "lockstep"
         self.scenario = self._scenario(name, path, duration)
         self.n_steps = self.scenario.n_steps
@@ -117,6 +121,14 @@ class WorldNode(Node):
         self.end_wall_ns = 0
         self._gate_since = None
         self._created = self._gate_reported = time.monotonic()
+        # Writers' matched readers as their processes report them (node -> topic -> count), the
+        # topics that carry data to an awaited node (robot topics, a swarm's bundle or cloud), and
+        # since when every awaited node subscribes (the match timeout counts from then).
+        self._matched: dict[str, dict[str, int]] = {}
+        self._carriers: set[str] = set()
+        self._subscribed_since = None
+        self._match_warned = False
+        self.create_subscription(String, topics.MATCH_REPORT_TOPIC, self._on_match_report, qos.DATA)
         self._graph_timer = self.create_timer(0.1, self._poll_graph)
         self._clock_timer = None
         self._field_timer = None
@@ -185,9 +197,49 @@ class WorldNode(Node):
         unheard = sorted(base for base, ids in self.swarms.items() if ids is None)
         if unheard:
             return f"the member list of {', '.join(unheard)}"
-        return self._subscribers_missing()
+        missing = self._subscribers_missing()
+        if missing:
+            self._subscribed_since = None
+            return missing
+        return self._writers_unmatched()
+
+    def _on_match_report(self, msg: String) -> None:
+        doc = json.loads(msg.data)
+        self._matched[doc["node"]] = doc["matched"]
+
+    def _writers_unmatched(self) -> str:
+        """The graph the world sees is not the one each robot process sees: a process whose writer
+        has not yet discovered an awaited reader would send it nothing. The processes report their
+        writers' matched readers (:class:`~kilobot_twin.ros.publishing.MatchReport`); every topic
+        that carries data to an awaited node must have matched as many readers as the world sees
+        on it. A reader that never matches (a QoS its writer cannot serve) would hold the start
+        for ever: after ``match_timeout_s`` (0: no wait) the run starts, with a warning."""
+        if not self._carriers or self.match_timeout_s == 0:
+            return ""
+        now = time.monotonic()
+        if self._subscribed_since is None:
+            self._subscribed_since = now
+        matched: dict[str, int] = {}
+        for report in self._matched.values():
+            for topic, n in report.items():
+                matched[topic] = max(n, matched.get(topic, 0))
+        for topic in sorted(self._carriers):
+            readers, m = self.count_subscribers(topic), matched.get(topic)
+            if m is not None and m >= readers:
+                continue
+            waiting = (f"a report of the readers matched by the writer of {topic}" if m is None
+                       else f"the writer of {topic} to match its readers ({m} of {readers})")
+            if now - self._subscribed_since < self.match_timeout_s:
+                return waiting
+            if not self._match_warned:
+                self._match_warned = True
+                self.get_logger().warning(f"starting after match_timeout_s ({self.match_timeout_s:g} s) still waiting for "
+                                          f"{waiting}: that reader may miss the run's first messages")
+            return ""
+        return ""
 
     def _subscribers_missing(self) -> str:
+        self._carriers = set()
         if not self.wait_for_nodes:
             return ""
         topics_ = [topic[: -len("pose")] + suffix for topic in self.robots.values() for suffix in self.wait_topics
@@ -204,13 +256,18 @@ class WorldNode(Node):
         for topic in topics_ + analysis:
             awaited = [n for n in self.wait_for_nodes if n != "analysis" or topic not in analysis]
             parsed = topics.parse_robot_topic(topic)
-            names = bundle_takers[swarm_of[parsed[0]]] if parsed and parsed[0] in swarm_of else set()
+            base = swarm_of.get(parsed[0]) if parsed else None
+            names = bundle_takers[base] if base is not None else set()
+            if any(n in names for n in awaited):
+                self._carriers.add(topics.swarm_bundle_topic(base))
             if all(n in names for n in awaited):
                 continue  # (no graph query per robot topic when a bundle covers it)
             names = names | {i.node_name for i in self.get_subscriptions_info_by_topic(topic)}
             missing = [n for n in awaited if n not in names]
             if missing:
                 return f"{', '.join(missing)} to subscribe to {topic}"
+            if topic not in analysis:  # (the analysis node's own topics: not reported)
+                self._carriers.add(topic)
         return ""
 
     def _subscribe_members(self, base: str, topic: str) -> None:

@@ -12,6 +12,10 @@ from __future__ import annotations
 
 from rclpy.event_handler import PublisherEventCallbacks
 
+from ..recording import topics
+from . import qos
+from .convert import json_msg
+
 #: A publisher asks rmw for its matched readers at least once every this many publish calls.
 RECHECK_EVERY = 32
 
@@ -48,6 +52,37 @@ class ReaderAwarePublisher:
     def get_subscription_count(self) -> int:
         return self.pub.get_subscription_count()
 
+    def refresh(self) -> int:
+        """Ask rmw for the matched readers now (what a :class:`MatchReport` tells the world), so
+        that a first publication after it is not skipped on a matched event still queued."""
+        self.readers = self.pub.get_subscription_count()
+        self._until_check = RECHECK_EVERY
+        return self.readers
+
     @property
     def topic_name(self) -> str:
         return self.pub.topic_name
+
+
+class MatchReport:
+    """Until :meth:`stop`, every ``period_s`` tells the world how many readers each of a process's
+    data writers has matched (on :data:`topics.MATCH_REPORT_TOPIC`). The world's graph shows a
+    reader as soon as the world has discovered it; a writer in another process matches it when
+    that process has, which on a loaded machine can be later: a run started in between loses its
+    first messages to that reader. ``writers()``: the writers to report (ReaderAwarePublishers,
+    whose cached count is refreshed too, or rclpy publishers)."""
+
+    def __init__(self, node, writers, period_s: float = 0.2):
+        self.node, self.writers = node, writers
+        self.pub = node.create_publisher(type(json_msg("")), topics.MATCH_REPORT_TOPIC, qos.DATA)
+        self.timer = node.create_timer(period_s, self.report)
+
+    def report(self) -> None:
+        counts = {w.topic_name: (w.refresh() if isinstance(w, ReaderAwarePublisher) else w.get_subscription_count())
+                  for w in self.writers()}
+        self.pub.publish(json_msg({"node": self.node.get_fully_qualified_name(), "matched": counts}))
+
+    def stop(self) -> None:
+        if self.timer is not None:
+            self.node.destroy_timer(self.timer)
+            self.timer = None

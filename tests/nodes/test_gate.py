@@ -5,9 +5,12 @@ import subprocess
 import sys
 import time
 
+from geometry_msgs.msg import PoseStamped
+from rclpy.node import Node
+
 from kilobot_twin.nodes.swarm import SwarmNode
 from kilobot_twin.nodes.world import WorldNode
-from kilobot_twin.ros import latched
+from kilobot_twin.ros import latched, qos
 from kilobot_twin.ros.launcher import Child, timeout_problem
 
 from ..ros.test_latched import drop_first_reader
@@ -35,6 +38,39 @@ def test_the_gate_names_what_is_missing_in_the_order_it_comes():
         g.add(Collector(g.context, N))
         assert g.spin_until(lambda: world._gate_waits_for() == "", 10), world._gate_waits_for()
         assert g.spin_until(lambda: world.finished.done(), 30)
+        assert not world._match_warned  # the writers' reports came, and said they had matched
+
+
+class UnservedCollector(Node):
+    """Subscribes to the robots' poses asking for their history (transient-local), which their
+    volatile writers cannot give: on the graph, never matched."""
+
+    def __init__(self, context, n):
+        super().__init__("collector", context=context)
+        for i in range(n):
+            self.create_subscription(PoseStamped, f"/kilobot_{i}/pose", lambda m: None, qos.LATCHED)
+
+
+def test_the_gate_waits_for_the_writers_to_match_an_awaited_reader_and_then_starts_with_a_warning():
+    """The graph the world sees is not the robots' processes': a reader on the world's graph may
+    not be matched by a robot's writer yet, and a run started then loses its first messages to
+    it. Here the awaited reader is one no writer can serve (it asks for history that volatile
+    writers do not keep): on the graph, never matched. The world does not start on the graph
+    alone; it names the writer and the count, and after ``match_timeout_s`` starts with a warning."""
+    with Graph() as g:
+        world = g.add(WorldNode(context=g.context, parameter_overrides=overrides(
+            scenario="random_walk", duration_s=1.0, robots=N, wait_for_nodes="collector", wait_topics="pose",
+            settle_s=0.2, linger_s=0.0, match_timeout_s=3.0, gate_report_s=0.0)))
+        g.add(UnservedCollector(g.context, N))
+        swarm = g.add(SwarmNode(context=g.context, parameter_overrides=overrides(robots=N, batched=False)))
+        assert g.spin_until(lambda: swarm.world_ready.done(), 10)
+        swarm.create_robots(g.executor)
+        # the world's own pose reader (lockstep) is matched, the collector's is not
+        want = "the writer of /kilobot_0/pose to match its readers (1 of 2)"
+        assert g.spin_until(lambda: world._gate_waits_for() == want, 10), world._gate_waits_for()
+        assert world.pacer.step < 0 and not world._match_warned
+        assert g.spin_until(lambda: world.finished.done(), 30), world._gate_waits_for()
+        assert world._match_warned
 
 
 def test_a_world_that_never_starts_says_why_on_its_log_and_in_the_runs_report(tmp_path):
