@@ -35,7 +35,7 @@ pictures: $(STAMP)
 	sh docs/make_pictures.sh
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n auto
+	$(BIN)/python -m pytest -q -n auto --dist worksteal
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -n auto -m slow
