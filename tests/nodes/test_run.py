@@ -267,8 +267,9 @@ def test_sigint_to_the_whole_process_group_finalises_the_bag(tmp_path, tries):
 
 def test_one_swarm_over_three_processes_records_what_one_process_records(tmp_path):
     """`run --swarms 3`: three swarm processes, each a block of the ids; the world waits for all
-    of them. Every robot, clock and analysis message equals the one-process run's, byte for byte,
-    and the poses equal the batch engine's."""
+    of them, and for each one's writers to match the recorder's and the analysis's readers (no
+    match timeout on its log). Every robot, clock and analysis message equals the one-process
+    run's, byte for byte, and the poses equal the batch engine's."""
     from rosbags.rosbag2 import Reader
 
     def raw(bag):
@@ -284,6 +285,9 @@ def test_one_swarm_over_three_processes_records_what_one_process_records(tmp_pat
         res = cli("run", "--scenario", "random_walk", "--robots", "7", "--duration", "2", "--seed", "4", "--swarms",
                   str(k), "--out", str(out))
         assert res.returncode == 0, res.stdout + res.stderr
+        # every swarm process reported its writers matched before the world's gate opened
+        world_log = (tmp_path / f"k{k}.logs" / "world.log").read_text()
+        assert "lockstep:" in world_log and "match_timeout_s" not in world_log, world_log
         runs[k] = raw(out)
     assert {t for t in runs[3] if t.startswith("/swarm")} == {f"/swarm_{i}/{n}" for i in range(3)
                                                                for n in ("members", "robots")}
