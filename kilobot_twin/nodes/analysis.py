@@ -28,6 +28,7 @@ from ..recording import cdr, topics
 from ..ros import convert, params, qos
 from ..ros.executors import run_node
 from ..ros.latched import LatchedReader
+from ..ros.publishing import MatchReport
 from ..core.scenarios import parse_world_document, scenario_from_document
 
 PROG = "kilobot-twin analysis"
@@ -64,6 +65,8 @@ class AnalysisNode(Node):
         self.pubs = {m: self.create_publisher(Float64, f"~/{m}", qos.DATA) for m in METRICS}
         self.pub_robots = self.create_publisher(UInt32, "~/robots", qos.DATA)
         self.latest: dict = {}
+        # its writers' matched readers, for the world's start gate, until its first values go out
+        self.match_report = MatchReport(self, lambda: [self.pub_time, self.pub_robots, *self.pubs.values()])
         self.world_reader = LatchedReader(self, String, f"{self.world}/scenario", self._on_world)
         self.create_timer(0.25, self._discover)
 
@@ -164,6 +167,7 @@ class AnalysisNode(Node):
         rows = [snap[i] for i in sorted(snap)]
         m = swarm_metrics([r[1] for r in rows], [r[2] for r in rows], [r[3] for r in rows if r[3] is not None],
                           [r[4] for r in rows if r[4] is not None], self.scenario, len(self.cells))
+        self.match_report.stop()
         self.pub_time.publish(Float64(data=stamp_ns / convert.NS_PER_S))
         for k, v in m.items():
             self.pubs[k].publish(Float64(data=v))

@@ -16,9 +16,9 @@ Start gate: the world waits until ``robots`` robots are on the graph and every n
 ``wait_for_nodes`` (comma-separated, e.g. ``recorder,analysis``) subscribes to each robot's
 ``wait_topics`` (default ``pose,light,led,clock,robots``; ``robots`` is a batched swarm's cloud; a
 node that subscribes to a swarm's ``bundle`` counts as subscribed to its robots' data topics) and
-to every ``/analysis/`` topic on the graph, and until the writers of those robot topics (or
-of the swarm's bundle or cloud that carries them) have matched as many readers as the world
-sees on them, as their processes report on ``/_kilobot_twin/matched`` (at most
+to every ``/analysis/`` topic on the graph, and until the writers of those topics (or of the
+swarm's bundle or cloud that carries a robot's) have matched as many readers as the world sees
+on them, as their processes report on ``/_kilobot_twin/matched`` (at most
 ``match_timeout_s``, default 5 s, then a warning: a reader whose QoS a writer cannot serve never
 matches), so that a recording holds every message, then ``settle_s`` more. A start that has not come says what it waits for, as a warning every
 ``gate_report_s`` seconds (default 10; 0: never). Then:
@@ -266,8 +266,7 @@ class WorldNode(Node):
             missing = [n for n in awaited if n not in names]
             if missing:
                 return f"{', '.join(missing)} to subscribe to {topic}"
-            if topic not in analysis:  # (the analysis node's own topics: not reported)
-                self._carriers.add(topic)
+            self._carriers.add(topic)
         return ""
 
     def _subscribe_members(self, base: str, topic: str) -> None:
