@@ -18,10 +18,10 @@ Start gate: the world waits until ``robots`` robots are on the graph and every n
 node that subscribes to a swarm's ``bundle`` counts as subscribed to its robots' data topics) and
 to every ``/analysis/`` topic on the graph, and until the writers of those topics (or of the
 swarm's bundle or cloud that carries a robot's) have matched as many readers as the world sees
-on them, as their processes report on ``/_kilobot_twin/matched`` (at most
-``match_timeout_s``, default 5 s, then a warning: a reader whose QoS a writer cannot serve never
-matches), so that a recording holds every message, then ``settle_s`` more. A start that has not come says what it waits for, as a warning every
-``gate_report_s`` seconds (default 10; 0: never). Then:
+on them, as their processes report on ``/_kilobot_twin/matched`` (at most ``match_timeout_s``,
+default 5 s, then a warning: a reader whose QoS a writer cannot serve never matches), so that a
+recording holds every message, then ``settle_s`` more. A start that has not come says what it
+waits for, as a warning every ``gate_report_s`` seconds (default 10; 0: never). Then:
 
 - ``lockstep``: publish /clock for step k once every robot has published its pose for step
   ``k - window_steps`` (a robot of a batched ``swarm`` process counts as published when its

@@ -30,8 +30,8 @@ SWARM_CLOUD = "robots"
 #: written into the bag as the robots' own topics, never as a topic of its own.
 SWARM_BUNDLE = "bundle"
 BUNDLE_TYPE = "std_msgs/msg/UInt8MultiArray"
-#: Until a run starts, every process that publishes robot data says here how many readers each of
-#: its writers has matched (std_msgs/String, JSON ``{"node": ..., "matched": {topic: count}}``):
+#: Until a run starts, every process that publishes robot data (and the analysis node) says here
+#: how many readers each of its writers has matched (std_msgs/String, JSON ``{"node": ..., "matched": {topic: count}}``):
 #: the world's start gate waits for them (:mod:`kilobot_twin.nodes.world`). Hidden (the leading
 #: underscore): ``ros2 topic list`` leaves it out, and the recorder's prefixes do not take it.
 MATCH_REPORT_TOPIC = "/_kilobot_twin/matched"
