@@ -174,6 +174,8 @@ class RobotNode(Node):
             self.publish_sample(self._wall_stamp())
             self.timer = self.create_timer(self.scenario.dt_s, self._on_timer)
         elif state == "done":
+            if self.timer is not None and not self.done:  # the steps due by the end: the last races the world's done
+                self._on_timer()
             self.done = True
             if self.timer is not None:
                 self.timer.cancel()

@@ -170,6 +170,8 @@ class SwarmNode(Node):
         elif state == "done":
             if self.rt_timer is not None:
                 self.rt_timer.cancel()
+                if not self.robots[0].done:  # the steps due by the end: the last races the world's done
+                    self._on_realtime_timer()
             for r in self.robots:
                 r.done = True
         if state == "running":
