@@ -17,6 +17,9 @@ def advance(ticks, clock_rate, tick_hz: float, dt_s: float):
     return ticks + (tick_hz * dt_s) * clock_rate
 
 
+_LED_OF_PARITY = np.array([LED_RED, LED_BLUE], dtype=np.int8)
+
+
 def blink_led(ticks, half_period_ticks: int):
     """LED of the blink program: red for the first ``half_period_ticks`` of each period, then blue.
 
@@ -25,9 +28,6 @@ def blink_led(ticks, half_period_ticks: int):
     (4x faster than float floor division, which long recordings' LED grids spend most time in).
     """
     return _LED_OF_PARITY[(np.floor(ticks).astype(np.int64) // int(half_period_ticks)) & 1]
-
-
-_LED_OF_PARITY = np.array([LED_RED, LED_BLUE], dtype=np.int8)
 
 
 def neighbours(x, y, radius_m: float):

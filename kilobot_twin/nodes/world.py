@@ -121,11 +121,9 @@ class WorldNode(Node):
         self.end_wall_ns = 0
         self._gate_since = None
         self._created = self._gate_reported = time.monotonic()
-        # Writers' matched readers as their processes report them (node -> topic -> count), the
-        # topics that carry data to an awaited node (robot topics, a swarm's bundle or cloud), and
+        # Writers' matched readers as their processes report them (node -> topic -> count), and
         # since when every awaited node subscribes (the match timeout counts from then).
         self._matched: dict[str, dict[str, int]] = {}
-        self._carriers: set[str] = set()
         self._subscribed_since = None
         self._match_warned = False
         self.create_subscription(String, topics.MATCH_REPORT_TOPIC, self._on_match_report, qos.DATA)
@@ -197,24 +195,24 @@ class WorldNode(Node):
         unheard = sorted(base for base, ids in self.swarms.items() if ids is None)
         if unheard:
             return f"the member list of {', '.join(unheard)}"
-        missing = self._subscribers_missing()
+        missing, carriers = self._subscribers_missing()
         if missing:
             self._subscribed_since = None
             return missing
-        return self._writers_unmatched()
+        return self._writers_unmatched(carriers)
 
     def _on_match_report(self, msg: String) -> None:
         doc = json.loads(msg.data)
         self._matched[doc["node"]] = doc["matched"]
 
-    def _writers_unmatched(self) -> str:
+    def _writers_unmatched(self, carriers: set[str]) -> str:
         """The graph the world sees is not the one each robot process sees: a process whose writer
         has not yet discovered an awaited reader would send it nothing. The processes report their
         writers' matched readers (:class:`~kilobot_twin.ros.publishing.MatchReport`); every topic
-        that carries data to an awaited node must have matched as many readers as the world sees
-        on it. A reader that never matches (a QoS its writer cannot serve) would hold the start
+        that carries data to an awaited node (``carriers``) must have matched as many readers as
+        the world sees on it. A reader that never matches (a QoS its writer cannot serve) would hold the start
         for ever: after ``match_timeout_s`` (0: no wait) the run starts, with a warning."""
-        if not self._carriers or self.match_timeout_s == 0:
+        if not carriers or self.match_timeout_s == 0:
             return ""
         now = time.monotonic()
         if self._subscribed_since is None:
@@ -223,7 +221,7 @@ class WorldNode(Node):
         for report in self._matched.values():
             for topic, n in report.items():
                 matched[topic] = max(n, matched.get(topic, 0))
-        for topic in sorted(self._carriers):
+        for topic in sorted(carriers):
             readers, m = self.count_subscribers(topic), matched.get(topic)
             if m is not None and m >= readers:
                 continue
@@ -238,10 +236,12 @@ class WorldNode(Node):
             return ""
         return ""
 
-    def _subscribers_missing(self) -> str:
-        self._carriers = set()
+    def _subscribers_missing(self) -> tuple[str, set[str]]:
+        """The first awaited subscription not on the graph ("" when none), and the topics that
+        carry data to the awaited nodes: each robot topic they read, or its swarm's bundle."""
+        carriers: set[str] = set()
         if not self.wait_for_nodes:
-            return ""
+            return "", carriers
         topics_ = [topic[: -len("pose")] + suffix for topic in self.robots.values() for suffix in self.wait_topics
                    if suffix in DATA_TOPICS]
         topics_ += [f"{base}/{suffix}" for base in self.swarms for suffix in self.wait_topics if suffix in SWARM_TOPICS]
@@ -259,15 +259,15 @@ class WorldNode(Node):
             base = swarm_of.get(parsed[0]) if parsed else None
             names = bundle_takers[base] if base is not None else set()
             if any(n in names for n in awaited):
-                self._carriers.add(topics.swarm_bundle_topic(base))
+                carriers.add(topics.swarm_bundle_topic(base))
             if all(n in names for n in awaited):
                 continue  # (no graph query per robot topic when a bundle covers it)
             names = names | {i.node_name for i in self.get_subscriptions_info_by_topic(topic)}
             missing = [n for n in awaited if n not in names]
             if missing:
-                return f"{', '.join(missing)} to subscribe to {topic}"
-            self._carriers.add(topic)
-        return ""
+                return f"{', '.join(missing)} to subscribe to {topic}", carriers
+            carriers.add(topic)
+        return "", carriers
 
     def _subscribe_members(self, base: str, topic: str) -> None:
         """A swarm's member list is latched: read it with :class:`LatchedReader` (made again while

@@ -120,6 +120,11 @@ def _need(meta, key, types, where, fix):
     return v
 
 
+def _finite(v) -> bool:
+    """A finite number of YAML (int or float, not a bool)."""
+    return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+
+
 def _typename(types):
     types = types if isinstance(types, tuple) else (types,)
     return " or ".join({int: "an integer", float: "a number", str: "a string", list: "a list"}.get(t, t.__name__)
@@ -169,13 +174,12 @@ def load_meta(folder: Path) -> dict:
                               "e.g. half_period_ticks: 30, nominal_tick_hz: 31")
     if "camera_axis_m" in meta:  # motion: where the camera's optical axis meets the floor
         v = meta["camera_axis_m"]
-        if (not isinstance(v, list) or len(v) != 2
-                or any(isinstance(a, bool) or not isinstance(a, (int, float)) or not math.isfinite(a) for a in v)):
+        if not isinstance(v, list) or len(v) != 2 or not all(_finite(a) for a in v):
             raise ConfigError(f"{where}: camera_axis_m", f"expected [x, y] in metres, got {v!r}",
                               "give the floor point under the camera's optical axis, e.g. camera_axis_m: [0.02, -0.01]")
     if "camera_axis_sd_m" in meta:
         v = meta["camera_axis_sd_m"]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (v > 0 and math.isfinite(v)):
+        if not (_finite(v) and v > 0):
             raise ConfigError(f"{where}: camera_axis_sd_m", f"expected a positive number, got {v!r}",
                               "give how well camera_axis_m is known, in metres, e.g. 0.01")
     if "tracking_noise_m" in meta:

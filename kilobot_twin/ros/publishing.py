@@ -11,6 +11,7 @@ matched count (its ``matched`` event, and a fresh ``get_subscription_count`` eve
 from __future__ import annotations
 
 from rclpy.event_handler import PublisherEventCallbacks
+from std_msgs.msg import String
 
 from ..recording import topics
 from . import qos
@@ -41,8 +42,7 @@ class ReaderAwarePublisher:
     def publish(self, data) -> None:
         self._until_check -= 1
         if self._until_check <= 0:
-            self.readers = self.pub.get_subscription_count()
-            self._until_check = RECHECK_EVERY
+            self.refresh()
         if self.readers > 0:
             self.pub.publish(data)
             self.handed += 1
@@ -53,8 +53,9 @@ class ReaderAwarePublisher:
         return self.pub.get_subscription_count()
 
     def refresh(self) -> int:
-        """Ask rmw for the matched readers now (what a :class:`MatchReport` tells the world), so
-        that a first publication after it is not skipped on a matched event still queued."""
+        """Ask rmw for the matched readers now: every RECHECK_EVERY publications, and for a
+        :class:`MatchReport` (so that what the world is told is what the first publication after
+        it sees, not a count whose matched event is still queued)."""
         self.readers = self.pub.get_subscription_count()
         self._until_check = RECHECK_EVERY
         return self.readers
@@ -74,7 +75,7 @@ class MatchReport:
 
     def __init__(self, node, writers, period_s: float = 0.2):
         self.node, self.writers = node, writers
-        self.pub = node.create_publisher(type(json_msg("")), topics.MATCH_REPORT_TOPIC, qos.DATA)
+        self.pub = node.create_publisher(String, topics.MATCH_REPORT_TOPIC, qos.DATA)
         self.timer = node.create_timer(period_s, self.report)
 
     def report(self) -> None:
