@@ -18,6 +18,21 @@ def _fmt(v) -> str:
     return str(v)
 
 
+def _tracked_point_text(tp: dict) -> str:
+    """What the named speed spread would take of the tracker (``workflow.tracked_point_offset``):
+    a tracked point that far to the side of the rotation centre, and whether a point on the
+    robot's body can be that far."""
+    head = (f"The speed spread named ({100 * tp['speed_spread']:.2g} % of the speed) is also what robots alike in "
+            f"speed would show, tracked at points {1000 * tp['offset_m']:.1f} mm (rms) to the side of their rotation "
+            f"centres: at these turn rates (rms {tp['turn_rate_rms_rad_s']:.2g} rad/s) such a point moves at "
+            f"v - omega r.")
+    if tp.get("within_body", True):
+        return (f"{head} The data cannot tell the two apart; where the tracked point may sit that far off the "
+                f"centre, the spread may be the tracker's.")
+    return (f"{head} That is beyond a Kilobot's body (radius {1000 * tp['body_radius_m']:.1f} mm), so no point "
+            f"on the robot makes this spread: the robots differ in speed.")
+
+
 def _removed(sh: dict) -> str:
     """The gap removed where the disagreement was, and whether naming reduced it at all."""
     lo, hi = sh.get("removed_ci95") or (None, None)
@@ -134,12 +149,7 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
                 lines.append(f"- {eff}: named {named}, detected {detected} ({v['unit']})")
         tp = s.get("tracked_point")
         if tp:
-            lines += ["", f"The speed spread named ({100 * tp['speed_spread']:.2g} % of the speed) is also what "
-                      f"robots alike in speed would show, tracked at points {1000 * tp['offset_m']:.2g} mm (rms) "
-                      f"to the side of their rotation centres: at these turn rates (rms "
-                      f"{tp['turn_rate_rms_rad_s']:.2g} rad/s) such a point moves at v - omega r. The data cannot "
-                      f"tell the two apart; where the tracked point may sit that far off the centre, the spread may "
-                      f"be the tracker's."]
+            lines += ["", _tracked_point_text(tp)]
         if s.get("estimates"):
             lines += ["", "Per-robot estimates (model.yaml) and how closely they can follow the robots' true values "
                       "from these trials (expected correlation, also about their slope against the truth; "

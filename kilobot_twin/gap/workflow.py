@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..core.constants import BODY_RADIUS_M
 from ..core.kinematics import heading_bias_from_turn_rate
 from ..recording import measured
 from ..errors import ConfigError
@@ -1293,7 +1294,10 @@ def tracked_point_offset(meas, model: E.TwinModel) -> dict | None:
     tell the two apart (the third world's markers, up to 3.6-12 mm off the centre, on robots
     whose turn rates differ by 0.0086 rad/s or drift, read as a spread of 0.4-0.5 % of the
     speed). ``offset_m``: that rms(r_perp), from the individual speed factors' relative spread,
-    the data's mean speed and the rms of the robots' mean turn rates (the population's included)."""
+    the data's mean speed and the rms of the robots' mean turn rates (the population's included);
+    ``within_body``: whether it is at most a Kilobot's body radius (a marker or LED blob sits on the
+    robot; beyond that, no tracked point can make the spread: on synth's speed spread of sd 0.12,
+    20-40 cm)."""
     f = model.individual.get("speed_factor")
     f = np.asarray(model.swarm.values["speed_factor"] if f is None else f, dtype=float)
     with np.errstate(all="ignore"), warnings.catch_warnings():
@@ -1305,7 +1309,9 @@ def tracked_point_offset(meas, model: E.TwinModel) -> dict | None:
     rms = float(np.sqrt(np.mean(w**2))) if len(w) else 0.0
     if not (rms > 0 and np.isfinite(v) and v > 0):
         return None
-    return {"speed_spread": spread, "turn_rate_rms_rad_s": rms, "speed_m_s": v, "offset_m": spread * v / rms}
+    offset = spread * v / rms
+    return {"speed_spread": spread, "turn_rate_rms_rad_s": rms, "speed_m_s": v, "offset_m": offset,
+            "body_radius_m": BODY_RADIUS_M, "within_body": bool(offset <= BODY_RADIUS_M)}
 
 
 #: effect -> (summary whose between-robot F statistic detects it, how its size is expressed)

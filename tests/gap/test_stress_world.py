@@ -96,6 +96,7 @@ def test_a_tracked_point_off_the_rotation_centre_reads_as_a_speed_spread(tmp_pat
 
     assert abs(tp["offset_m"] / want - 1) < 0.02, (tp, want)
     assert abs(tp["turn_rate_rms_rad_s"] / np.sqrt(np.mean(w**2)) - 1) < 0.02
+    assert tp["within_body"] and want < 0.015  # markers on the body, at most 15 mm off: a spread they can make
 
 
 def test_toggle_rates_through_misread_colours_and_burst_losses(tmp_path):

@@ -85,6 +85,18 @@ def test_pair_is_named_in_full(tmp_path):
     fitted = load_swarm(rep["model"])
     true = np.array([truth["robots"][str(i)]["speed_factor"] for i in fitted.ids])
     assert np.corrcoef(true, fitted.speed_factor)[0, 1] >= 0.95
+    # A speed spread of sd 0.12 is not a tracked point off the rotation centre: robots alike in
+    # speed would have to be tracked spread * v / rms(omega) to its side, here (from the truth's
+    # own speed factors and turn rates) nine times a Kilobot's body radius, and the report says so.
+    from kilobot_twin.core.constants import BODY_RADIUS_M, WHEEL_SEPARATION_M
+    tp = rep["datasets"][0]["tracked_point"]
+    v = tp["speed_m_s"]
+    omega = -np.array([truth["robots"][str(i)]["heading_bias"] for i in fitted.ids]) * v / WHEEL_SEPARATION_M
+    want = np.std(true, ddof=1) / np.mean(true) * v / np.sqrt(np.mean(omega**2))
+    assert want > 5 * BODY_RADIUS_M and 0.5 < tp["offset_m"] / want < 2, (tp, want)
+    assert tp["within_body"] is False
+    md = (tmp_path / "out" / "report.md").read_text()
+    assert "beyond a Kilobot's body (radius 16.5 mm)" in md and "the spread may be the tracker's" not in md
 
 
 def test_effect_outside_the_library_is_unexplained(tmp_path):
