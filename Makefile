@@ -9,11 +9,16 @@ STAMP := $(VENV)/.installed
 
 .PHONY: demo view view-web pictures test test-slow bench install clean
 
-$(STAMP): requirements.txt setup.py setup.cfg
+FOXGLOVE := tests/foxglove/package.json tests/foxglove/package-lock.json
+
+$(STAMP): requirements.txt setup.py setup.cfg $(FOXGLOVE)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -r requirements.txt
 	$(BIN)/python -m pip install --quiet --no-deps -e .
+	@# Foxglove's bag readers (npm, pinned by the lock file) for the tests, on the node of requirements.txt
+	@mkdir -p $(VENV)/foxglove && cp $(FOXGLOVE) $(VENV)/foxglove/
+	$(BIN)/npm ci --prefix $(VENV)/foxglove --silent --no-audit --no-fund
 	@touch $(STAMP)
 
 install: $(STAMP)

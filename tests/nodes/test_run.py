@@ -18,7 +18,7 @@ from kilobot_twin.ros.launcher import run_twin
 from kilobot_twin.core.scenarios import load_swarm_traits, named_scenario
 
 from ..conftest import own_domain
-from ..ros.test_bag import rerun_check, rosbags_messages
+from ..ros.test_bag import assert_foxglove_reads_what_rosbags_reads, rerun_check, rosbags_messages
 
 ROOT = Path(__file__).resolve().parents[2]
 ENV = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
@@ -49,6 +49,9 @@ def test_run_lockstep_bag_equals_batch_and_holds_run_metadata(tmp_path):
     sc = named_scenario("random_walk", 3)
     ref = sim.simulate(sc, load_swarm_traits("", 4, 5), 5, runs=[0], record_every=1)
     msgs = rosbags_messages(out)
+    # Foxglove, from the schemas the bag carries, reads every message as rosbags does from its own
+    # type store (a world image, JSON strings, clocks, poses, the swarm's point cloud, metrics)
+    assert assert_foxglove_reads_what_rosbags_reads(out) == len(msgs)
     for i in range(4):
         xs = [m.pose.position.x for t, m in msgs if t == f"/kilobot_{i}/pose"]
         np.testing.assert_allclose(xs, ref.traj["x"][0, i], rtol=0, atol=1e-12)

@@ -11,7 +11,7 @@ from kilobot_twin.recording.measured import Track, load, write
 from kilobot_twin.recording.bag import BagReader
 from kilobot_twin.recording.swarm_data import from_bag
 
-from ..ros.test_bag import rerun_check, rosbags_messages
+from ..ros.test_bag import assert_foxglove_reads_what_rosbags_reads, rerun_check, rosbags_messages
 
 V = 0.0113  # m/s
 L = 0.025   # wheel separation
@@ -50,6 +50,7 @@ def test_motion_import_keeps_values_gaps_and_trial_boundaries(tmp_path):
     counts = BagReader(bag).counts()
     assert counts["/kilobot_3/pose"] == 2 * 101 - 10 and counts["/kilobot_5/pose"] == 202
     assert counts["/world/trial"] == 2
+    assert assert_foxglove_reads_what_rosbags_reads(bag) == sum(counts.values())  # from the bag's own schemas
     meta = BagReader(bag).metadata()["kilobot_twin.import"]
     trials = json.loads(meta["trials"])
     period = trial_period_s(load(ds))
@@ -122,6 +123,10 @@ def test_light_sweep_and_blink_imports(tmp_path):
     assert res["counts"]["/kilobot_2/led"] == 11
     rec = from_bag(res["path"])
     np.testing.assert_array_equal(rec.led[1], np.arange(11) // 2 % 2)
+    # Foxglove reads what rosbags reads, from the schemas each bag carries (the motion import's
+    # topics in the first test's bag below)
+    for bag in (tmp_path / "b1", tmp_path / "b2"):
+        assert assert_foxglove_reads_what_rosbags_reads(bag) == sum(BagReader(bag).counts().values())
 
 
 def test_heading_from_motion_holds_the_last_direction_when_standing():

@@ -30,6 +30,88 @@ def rosbags_messages(bag_dir):
         return [(c.topic, ts.deserialize_cdr(raw, c.msgtype)) for c, _t, raw in r.messages()]
 
 
+FOXGLOVE = Path(__file__).resolve().parents[1] / "foxglove"
+
+
+def foxglove_messages(mcap_file) -> list[dict]:
+    """Every message of an MCAP file as Foxglove reads it (``tests/foxglove/decode.cjs``: its MCAP
+    reader, each schema parsed from the text the file carries, its CDR decoder), in file order:
+    topic, log_time (int ns), trailing (bytes after the decoded message), msg (plain JSON; NaN
+    as None). ``make install`` puts node (requirements.txt) and the npm packages in .venv."""
+    import json
+    import os
+
+    venv = Path(sys.executable).parent.parent
+    node = shutil.which("node", path=str(Path(sys.executable).parent)) or shutil.which("node")
+    modules = venv / "foxglove" / "node_modules"
+    assert node and modules.is_dir(), f"no node or no {modules}: run make install (requirements.txt, tests/foxglove)"
+    res = subprocess.run([node, str(FOXGLOVE / "decode.cjs"), str(mcap_file)], capture_output=True, text=True,
+                         timeout=120, env=dict(os.environ, NODE_PATH=str(modules)))
+    assert res.returncode == 0, res.stderr
+    out = [json.loads(line) for line in res.stdout.splitlines() if line]
+    for d in out:
+        d["log_time"] = int(d["log_time"])
+    return out
+
+
+def _plain(m):
+    """A rosbags message as plain values (its constants, class attributes, left out)."""
+    import numpy as np
+
+    if hasattr(m, "__dataclass_fields__"):
+        return {k: _plain(getattr(m, k)) for k in m.__dataclass_fields__ if k != "__msgtype__" and not k.isupper()}
+    if isinstance(m, np.ndarray):
+        return m.tolist()
+    if isinstance(m, (list, tuple)):
+        return [_plain(x) for x in m]
+    return m
+
+
+def _same(a, b, path: str) -> None:
+    """rosbags' value ``a`` equals Foxglove's ``b`` exactly (64-bit integers come as strings, NaN as None)."""
+    import math
+
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and set(a) == set(b), (path, a, b)
+        for k in a:
+            _same(a[k], b[k], f"{path}.{k}")
+    elif isinstance(a, list):
+        assert isinstance(b, list) and len(a) == len(b), (path, len(a), b if not isinstance(b, list) else len(b))
+        for i, (x, y) in enumerate(zip(a, b)):
+            _same(x, y, f"{path}[{i}]")
+    elif isinstance(a, float):
+        assert (math.isnan(a) and b is None) or a == b, (path, a, b)
+    elif isinstance(a, bool):
+        assert b is a, (path, a, b)
+    elif isinstance(a, int):
+        assert a == (int(b) if isinstance(b, str) else b) and not isinstance(b, bool), (path, a, b)
+    else:
+        assert a == b, (path, a, b)
+
+
+def assert_foxglove_reads_what_rosbags_reads(bag_dir) -> int:
+    """Foxglove, decoding each message from the schema the bag carries, reads every message as
+    rosbags does from its own ROS 2 Jazzy type store: the same topics and log times in the same
+    order, every field equal; after each message at most the 3 bytes of padding that round a CDR
+    buffer up to 4 (as DDS sends it). Returns the number of messages."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    with Reader(bag_dir) as r:
+        ours = [(c.topic, t, _plain(ts.deserialize_cdr(raw, c.msgtype))) for c, t, raw in r.messages()]
+    fox = foxglove_messages(mcap_path(bag_dir))
+    assert len(fox) == len(ours)
+    key = lambda topic, t: (topic, t)  # noqa: E731  (both readers in log-time order; ties by topic)
+    ours.sort(key=lambda x: key(x[0], x[1]))
+    fox.sort(key=lambda d: key(d["topic"], d["log_time"]))
+    for (topic, t, m), d in zip(ours, fox):
+        assert (topic, t) == (d["topic"], d["log_time"])
+        assert 0 <= d["trailing"] <= 3, (topic, d["trailing"])
+        _same(m, d["msg"], topic)
+    return len(fox)
+
+
 def test_schema_lists_every_dependency_once():
     s = ros2msg_schema("geometry_msgs/msg/PoseStamped")
     deps = [ln for ln in s.splitlines() if ln.startswith("MSG: ")]
@@ -77,6 +159,7 @@ def test_written_bag_reads_back_with_rosbags_and_passes_rerun_check(tmp_path):
         assert (ld.r, ld.b) == ((1.0, 0.0) if s.led == 0 else (0.0, 1.0))
     assert BagReader(bag).counts()["/kilobot_3/pose"] == 300
     assert BagReader(bag).metadata()["kilobot_twin"]["seed"] == "5"
+    assert assert_foxglove_reads_what_rosbags_reads(bag) == 1 + 3 * 300
 
 
 def test_repair_recovers_every_complete_chunk(tmp_path):
