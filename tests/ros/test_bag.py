@@ -102,9 +102,8 @@ def assert_foxglove_reads_what_rosbags_reads(bag_dir) -> int:
         ours = [(c.topic, t, _plain(ts.deserialize_cdr(raw, c.msgtype))) for c, t, raw in r.messages()]
     fox = foxglove_messages(mcap_path(bag_dir))
     assert len(fox) == len(ours)
-    key = lambda topic, t: (topic, t)  # noqa: E731  (both readers in log-time order; ties by topic)
-    ours.sort(key=lambda x: key(x[0], x[1]))
-    fox.sort(key=lambda d: key(d["topic"], d["log_time"]))
+    ours.sort(key=lambda x: (x[0], x[1]))  # by topic, then log time (stable: file order within a time)
+    fox.sort(key=lambda d: (d["topic"], d["log_time"]))
     for (topic, t, m), d in zip(ours, fox):
         assert (topic, t) == (d["topic"], d["log_time"])
         assert 0 <= d["trailing"] <= 3, (topic, d["trailing"])
