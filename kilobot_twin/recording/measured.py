@@ -184,7 +184,7 @@ def load_meta(folder: Path) -> dict:
                               "give how well camera_axis_m is known, in metres, e.g. 0.01")
     if "tracking_noise_m" in meta:
         v = meta["tracking_noise_m"]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or v < 0:
+        if not (_finite(v) and v >= 0):
             raise ConfigError(f"{where}: tracking_noise_m", f"expected a non-negative number, got {v!r}", "give metres")
     return meta
 

@@ -112,6 +112,9 @@ def test_bad_rows_name_file_line_column(tmp_path, csv, where):
     (META + "camera_axis_m: [0.1, .nan]\n", "camera_axis_m"),
     (META + "camera_axis_m: 0.1\n", "camera_axis_m"),
     (META + "camera_axis_m: [0.1, 0.0]\ncamera_axis_sd_m: 0\n", "camera_axis_sd_m"),
+    (META + "tracking_noise_m: -0.001\n", "tracking_noise_m"),
+    (META + "tracking_noise_m: .inf\n", "tracking_noise_m"),
+    (META + "tracking_noise_m: .nan\n", "tracking_noise_m"),
 ])
 def test_bad_meta_names_the_key(tmp_path, meta, field):
     with pytest.raises(ConfigError) as e:
