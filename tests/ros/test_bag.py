@@ -21,13 +21,19 @@ def rerun_check(path) -> subprocess.CompletedProcess:
     return subprocess.run([RERUN, "mcap", "check", str(path)], capture_output=True, text=True, timeout=60)
 
 
-def rosbags_messages(bag_dir):
+def rosbags_records(bag_dir):
+    """Every message of a bag as rosbags reads it with its own ROS 2 Jazzy type store (not the
+    bag's schemas): (topic, log time in ns, message), in rosbags' order."""
     from rosbags.rosbag2 import Reader
     from rosbags.typesys import Stores, get_typestore
 
     ts = get_typestore(Stores.ROS2_JAZZY)
     with Reader(bag_dir) as r:
-        return [(c.topic, ts.deserialize_cdr(raw, c.msgtype)) for c, _t, raw in r.messages()]
+        return [(c.topic, t, ts.deserialize_cdr(raw, c.msgtype)) for c, t, raw in r.messages()]
+
+
+def rosbags_messages(bag_dir):
+    return [(topic, m) for topic, _t, m in rosbags_records(bag_dir)]
 
 
 FOXGLOVE = Path(__file__).resolve().parents[1] / "foxglove"
@@ -91,15 +97,10 @@ def _same(a, b, path: str) -> None:
 
 def assert_foxglove_reads_what_rosbags_reads(bag_dir) -> int:
     """Foxglove, decoding each message from the schema the bag carries, reads every message as
-    rosbags does from its own ROS 2 Jazzy type store: the same topics and log times in the same
-    order, every field equal; after each message at most the 3 bytes of padding that round a CDR
+    rosbags does from its own ROS 2 Jazzy type store: the same messages (topic and log time, as
+    many of each), every field equal; after each message at most the 3 bytes of padding that round a CDR
     buffer up to 4 (as DDS sends it). Returns the number of messages."""
-    from rosbags.rosbag2 import Reader
-    from rosbags.typesys import Stores, get_typestore
-
-    ts = get_typestore(Stores.ROS2_JAZZY)
-    with Reader(bag_dir) as r:
-        ours = [(c.topic, t, _plain(ts.deserialize_cdr(raw, c.msgtype))) for c, t, raw in r.messages()]
+    ours = [(topic, t, _plain(m)) for topic, t, m in rosbags_records(bag_dir)]
     fox = foxglove_messages(mcap_path(bag_dir))
     assert len(fox) == len(ours)
     ours.sort(key=lambda x: (x[0], x[1]))  # by topic, then log time (stable: file order within a time)
