@@ -213,7 +213,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("config", help="run configuration YAML (see config/*.yaml)")
     s.add_argument("--out", help="results file (.npz); default results/<config>.npz")
     s.add_argument("--traits", help="traits YAML overriding the config's swarm")
-    s.add_argument("--seed", type=int)
+    s.add_argument("--seed", type=_seed)
     s.add_argument("--runs", type=_positive_int)
     s.add_argument("--robots", type=_positive_int, help="number of robots (population configs)")
     s.add_argument("--workers", type=_positive_int, help="threads or processes (default: all cores)")
@@ -235,7 +235,7 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--out", default="out/experiments")
     e.add_argument("--preset", choices=PRESET_NAMES, default="paper")
     e.add_argument("--quick", action="store_true")
-    e.add_argument("--seed", type=int, default=2023)
+    e.add_argument("--seed", type=_seed, default=2023)
     e.add_argument("--workers", type=_positive_int)
     e.add_argument("--scheduler", type=_scheduler, help=_SCHEDULER_HELP)
     e.add_argument("--no-progress", action="store_true")
@@ -244,7 +244,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--out", default="out/reproduce")
     r.add_argument("--preset", choices=PRESET_NAMES, default="paper")
     r.add_argument("--quick", action="store_true", help="reduced runs (under 2 minutes)")
-    r.add_argument("--seed", type=int, default=2023)
+    r.add_argument("--seed", type=_seed, default=2023)
     r.add_argument("--workers", type=_positive_int)
     r.add_argument("--scheduler", type=_scheduler, help=_SCHEDULER_HELP)
     r.add_argument("--no-progress", action="store_true")
@@ -254,7 +254,7 @@ def _parser() -> argparse.ArgumentParser:
     sy.add_argument("--hidden", default="none", help="none, or a comma list of effects (see kilobot_twin/gap/synth.py)")
     sy.add_argument("--robots", type=_positive_int)
     sy.add_argument("--trials", type=_positive_int)
-    sy.add_argument("--seed", type=int, default=0)
+    sy.add_argument("--seed", type=_seed, default=0)
     sy.add_argument("--heading-noise-tau", type=_correlation_time, default=0.0, metavar="S",
                     help="motion: correlation time of every robot's turn-rate noise, s (default 0: white)")
     sy.add_argument("--effect-scale", type=_effect_scale, default=1.0, metavar="F",
@@ -265,7 +265,7 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("data", nargs="+", help="measured datasets (measured-v1 folders) or bags")
     g.add_argument("--model", help="base model (traits YAML with robots:); default: the paper's Eq. 4 fitted to the data")
     g.add_argument("--out", required=True)
-    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--seed", type=_seed, default=0)
     g.add_argument("--effects", action="append", metavar="FILE.py",
                    help="a Python file of your own effects (Effect subclasses) to add to the library's candidates; "
                         "repeatable (see docs/examples/floor_tilt.py)")
@@ -276,7 +276,7 @@ def _parser() -> argparse.ArgumentParser:
     td = tsub.add_parser("draw", help="draw a swarm from a population file and save it per robot")
     td.add_argument("population")
     td.add_argument("--out", required=True)
-    td.add_argument("--seed", type=int, default=0)
+    td.add_argument("--seed", type=_seed, default=0)
     td.add_argument("--robots", type=_positive_int)
     tc = tsub.add_parser("check", help="validate a traits file")
     tc.add_argument("path")
@@ -285,7 +285,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--scenario", default="phototaxis", help="straight, phototaxis, random_walk, blink, sync or a scenario YAML file")
     r.add_argument("--robots", type=_positive_int, default=10)
     r.add_argument("--duration", type=float, default=20.0, help="simulated seconds")
-    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--seed", type=_seed, default=0)
     r.add_argument("--mode", default="lockstep", help="lockstep (deterministic, as fast as possible) or realtime")
     r.add_argument("--traits", help="traits YAML (robots: or population:); default: a drawn population")
     r.add_argument("--out", default="bags/run", help="bag directory bags/NAME")
@@ -363,14 +363,21 @@ def _effect_scale(text: str) -> float:
     return _checked_float(text, check_effect_scale, "a number above 0")
 
 
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
-    return v
+def _integer_from(minimum: int, expected: str):
+    """An argparse type: an integer >= ``minimum``, else one line saying ``expected``."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        if v < minimum:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {v}")
+        return v
+    return parse
+
+
+_positive_int = _integer_from(1, "a positive integer")
+_seed = _integer_from(0, "an integer >= 0")  # NumPy's seed sequences take no negative seeds
 
 
 def main(argv=None) -> int:

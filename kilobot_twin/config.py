@@ -29,7 +29,7 @@ from typing import Any, Mapping
 from .batch import Campaign
 from .core.scenario import PRESETS, bias_axis_scale, preset_traits, scenario_from_dict
 from .core.traits import load_swarm, load_yaml, swarm_from_dict
-from .errors import ConfigError
+from .errors import ConfigError, is_number, is_whole
 
 RUN_KEYS = {"scenario", "swarm", "seed", "runs", "grid", "record_every", "trials_from_runs"}
 #: A heading bias on the paper's axis (converted with the preset's scale); ``heading_bias`` is b.
@@ -38,7 +38,7 @@ PAPER_AXIS_KEY = "heading_bias_paper_axis"
 
 def _scale_spec(spec, scale: float):
     """A trait value or a population distribution, multiplied by ``scale`` (non-numbers left for the validator)."""
-    num = (lambda v: v * scale if isinstance(v, (int, float)) and not isinstance(v, bool) else v)
+    num = (lambda v: v * scale if is_number(v, finite=False) else v)
     if not isinstance(spec, Mapping):
         return num(spec)
     out = dict(spec)
@@ -82,7 +82,7 @@ def _swarm_on_wheel_scale(doc, preset, source):
 
 def _int(data, key, default, source, minimum=0):
     v = data.get(key, default)
-    if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
+    if not is_whole(v) or v < minimum:
         raise ConfigError(key, f"expected an integer >= {minimum}, got {v!r}", f"write e.g. {key}: {max(minimum, 1)}", source)
     return v
 

@@ -12,7 +12,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, is_number
 from . import libm, rng
 from .constants import LIGHT_PEAK, LIGHT_READING_MAX
 
@@ -136,7 +136,7 @@ def field_from_dict(data: Mapping[str, Any], source: str = "", where: str = "lig
         if k in ("center", "extent_m"):
             args[k] = tuple(float(c) for c in v)
         elif k not in ("image", "path"):
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            if not is_number(v):
                 raise ConfigError(f"{where}{k}", f"expected a number, got {v!r}", "write a plain number", source)
             if k in ("radius_m", "sigma_m", "period_s", "peak") and v <= 0:
                 raise ConfigError(f"{where}{k}", f"must be positive, got {v}", "use a positive value", source)

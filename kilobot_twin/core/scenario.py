@@ -12,7 +12,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, is_number, is_whole
 from . import behaviors as B
 from .arena import Arena
 from .constants import TICK_HZ
@@ -107,14 +107,14 @@ def _parse_poses(doc, where: str, source: str = "") -> tuple:
         for name, x in zip(("x_m", "y_m", "heading_rad"), v):
             if x is None and name == "heading_rad":
                 continue
-            if isinstance(x, bool) or not isinstance(x, (int, float)) or not np.isfinite(x):
+            if not is_number(x):
                 raise ConfigError(f"{where}.{rid}.{name}", f"expected a number, got {x!r}", "write a plain number", source)
         out.append((rid, float(v[0]), float(v[1]), None if v[2] is None else float(v[2])))
     return tuple(sorted(out))
 
 
 def _int_key(k, where, what, source):
-    if isinstance(k, bool) or not (isinstance(k, int) or (isinstance(k, str) and k.strip().isdigit())) or int(k) < 0:
+    if not (is_whole(k) or (isinstance(k, str) and k.strip().isdigit())) or int(k) < 0:
         raise ConfigError(f"{where}.{k}", f"expected a {what} (integer >= 0), got {k!r}", f"key poses by {what}", source)
     return int(k)
 
@@ -231,9 +231,9 @@ def _sub(cls, data, where, source, converters=None):
             if v is None and (default is None or k in _NULLABLE):
                 out[k] = None
                 continue
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            if not is_number(v):
                 raise ConfigError(f"{where}{k}", f"expected a number, got {v!r}", "write a plain number", source)
-            out[k] = int(v) if isinstance(default, int) and not isinstance(default, bool) else float(v)
+            out[k] = int(v) if is_whole(default) else float(v)
         else:
             out[k] = v
     try:
@@ -244,7 +244,7 @@ def _sub(cls, data, where, source, converters=None):
 
 def _positive(d: Mapping, keys, where, source):
     for k in keys:
-        if k in d and d[k] is not None and not (isinstance(d[k], (int, float)) and d[k] > 0):
+        if k in d and d[k] is not None and not (is_number(d[k], finite=False) and d[k] > 0):
             raise ConfigError(f"{where}{k}", f"must be positive, got {d[k]!r}", "use a positive value", source)
 
 
@@ -266,9 +266,9 @@ def behavior_from_dict(data: Mapping[str, Any] | str, where: str = "behavior.", 
     cls = B.BEHAVIORS[kind]
     for f in dataclasses.fields(cls):
         v = values.get(f.name)
-        if v is None or isinstance(v, bool) or not isinstance(v, (int, float)):
-            continue  # absent, or a type error that _sub reports
-        if isinstance(f.default, int) and not isinstance(f.default, bool):
+        if v is None or not is_number(v):
+            continue  # absent, or an error that _sub reports
+        if is_whole(f.default):
             low = 0 if f.name == "loop_overhead_ticks" else 1
             if not float(v).is_integer() or v < low:
                 raise ConfigError(f"{where}{f.name}", f"expected a whole number >= {low}, got {v!r}", "write e.g. 31",
@@ -307,8 +307,11 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "") -> Scenario:
               "floor_tilt", "floor_tilt_direction_rad"):
         if k in data:
             v = data[k]
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise ConfigError(k, f"expected a number, got {v!r}", "write a plain number", source)
+            if not is_number(v):
+                raise ConfigError(k, f"expected a finite number, got {v!r}", "write a plain number", source)
+            if k == "cost_window_steps" and not (float(v).is_integer() and v >= 1):
+                raise ConfigError(k, f"expected a whole number of steps >= 1, got {v!r}", "write e.g. cost_window_steps: 100",
+                                  source)
             kw[k] = int(v) if k == "cost_window_steps" else float(v)
     kw["motors"] = _sub(MotorConfig, data.get("motors"), "motors.", source)
     kw["sensor"] = _sub(SensorModel, data.get("sensor"), "sensor.", source)

@@ -17,7 +17,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, is_number, is_whole
 from . import rng as _rng
 
 
@@ -119,7 +119,7 @@ _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
 
 def _check_trait(name: str, value: Any, where: str, source: str = "") -> float:
     label = f"{where}{name}"
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+    if not is_number(value, finite=False):
         raise ConfigError(label, f"expected a number, got {value!r}", "write a plain number", source)
     v = float(value)
     if not np.isfinite(v):
@@ -224,7 +224,7 @@ _DISTS = {
 
 
 def _draw_trait(name: str, spec: Any, n: int, gen: np.random.Generator, where: str, source: str) -> np.ndarray:
-    if isinstance(spec, (int, float)) and not isinstance(spec, bool):
+    if is_number(spec, finite=False):
         spec = {"dist": "constant", "value": spec}
     if not isinstance(spec, Mapping) or "dist" not in spec:
         raise ConfigError(f"{where}{name}", "expected a number or {dist: ..., ...}",
@@ -242,8 +242,8 @@ def _draw_trait(name: str, spec: Any, n: int, gen: np.random.Generator, where: s
 
     def num(key):
         v = spec[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ConfigError(f"{where}{name}.{key}", f"expected a number, got {v!r}", "write a plain number", source)
+        if not is_number(v):
+            raise ConfigError(f"{where}{name}.{key}", f"expected a finite number, got {v!r}", "write a plain number", source)
         return float(v)
 
     if dist == "constant":
@@ -287,12 +287,15 @@ def draw_population(spec: Mapping[str, Any], seed: int, n: int | None = None, so
     if not isinstance(spec, Mapping):
         raise ConfigError(where.rstrip("."), "expected a mapping", "write e.g. {n: 10, heading_bias: {...}}", source)
     n_robots = n if n is not None else spec.get("n")
-    if isinstance(n_robots, bool) or not isinstance(n_robots, int) or n_robots < 1:
+    if not is_whole(n_robots) or n_robots < 1:
         raise ConfigError(f"{where}n", f"expected a positive integer, got {n_robots!r}", "set n: NUMBER_OF_ROBOTS", source)
     values = {}
     for k, s in spec.items():
-        if k in ("n", "seed"):
+        if k == "n":
             continue
+        if k == "seed":  # (it was passed over, and the draw took the file's or the caller's seed)
+            raise ConfigError(f"{where}seed", "a population takes the file's seed", "write seed: N at the top level of the file",
+                              source)
         if k not in TRAIT_DEFAULTS:
             raise ConfigError(f"{where}{k}", "unknown trait", f"known traits: {', '.join(TRAIT_NAMES)}", source)
         values[k] = _draw_trait(k, s, n_robots, _rng.generator(seed, _rng.SPAWN_POPULATION, TRAIT_NAMES.index(k)), where, source)
@@ -322,7 +325,9 @@ def swarm_from_dict(data: Any, seed: int = 0, n: int | None = None, source: str 
     if ("robots" in data) == ("population" in data):
         raise ConfigError("robots", "give exactly one of robots: and population:",
                           "list robots by id, or describe a population to draw", source)
-    seed = int(data.get("seed", seed))
+    seed = data.get("seed", seed)
+    if not is_whole(seed) or seed < 0:
+        raise ConfigError("seed", f"expected an integer >= 0, got {seed!r}", "write e.g. seed: 1", source)
     if "population" in data:
         return draw_population(data["population"], seed, n, source)
     base = traits_from_mapping(data.get("defaults") or {}, "defaults.", source)

@@ -1537,7 +1537,7 @@ def load_effects(path: str, taken=()) -> dict:
     import sys
     from pathlib import Path
 
-    from ..errors import ConfigError
+    from ..errors import ConfigError, is_number
 
     p = Path(path)
     if not p.is_file():
@@ -1581,8 +1581,7 @@ def load_effects(path: str, taken=()) -> dict:
                               "set predicts (e.g. {\"speed\": \"pop\"}) or define explains(signal)")
         if e.states_size():
             r = e.size_range
-            ok = isinstance(r, (tuple, list)) and len(r) == 2 and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in r)
+            ok = isinstance(r, (tuple, list)) and len(r) == 2 and all(is_number(v) for v in r)
             if not (ok and 0 < r[0] < r[1]):
                 raise ConfigError("--effects", f"{where}: size_range {r!r} is not (smallest, largest) with 0 < smallest < largest",
                                   "set size_range to the sizes of at_size to search, e.g. (0.005, 0.5)")

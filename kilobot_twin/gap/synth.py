@@ -20,7 +20,7 @@ from ..core.constants import WHEEL_SEPARATION_M
 from ..core.kinematics import MotorConfig
 from ..core.scenario import MAX_FLOOR_TILT, scenario_from_dict
 from ..core.traits import SwarmTraits
-from ..errors import ConfigError
+from ..errors import ConfigError, is_number
 from .observe import Observation, correlated_noise, jittered_times, noisy_positions
 
 # The twin's nominal robot (what the base model assumes where it does not fit the data).
@@ -65,11 +65,10 @@ def parse_hidden(text: str, kind: str) -> list[str]:
 
 def check_effect_scale(value) -> float:
     """``effect_scale`` as a float, or a :class:`ConfigError`: a number above 0."""
-    v = float(value)
-    if not (np.isfinite(v) and v > 0):
-        raise ConfigError("--effect-scale", f"must be a number above 0, got {value!r}",
+    if not (is_number(value) and value > 0):
+        raise ConfigError("--effect-scale", f"must be a finite number above 0, got {value!r}",
                           "give the factor on the hidden effects' spread, e.g. 0.5 or 2")
-    return v
+    return float(value)
 
 
 def synth(kind: str, hidden: str | list[str], out: str | Path, robots: int | None = None, trials: int | None = None,

@@ -21,7 +21,7 @@ import yaml
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ..errors import ConfigError
+from ..errors import ConfigError, is_number
 from ..ros import params
 from ..ros.executors import STOP, run_node
 from .recorder import message_class
@@ -221,8 +221,11 @@ def timing_stats(err_ns: np.ndarray, wall_s: float, n: int) -> dict:
 def replay_bag(bag: str, rate: float = 1.0, loop: bool = False, topics: list[str] | None = None,
                wait_for_subscribers_s: float = 0.0, context=None) -> dict:
     """Replay a bag in this process (own rclpy init unless ``context`` is given); returns timing statistics."""
-    if not rate > 0:
-        raise ConfigError("--rate", f"must be positive, got {rate}", "e.g. --rate 1 (recorded speed) or --rate 10")
+    if not (is_number(rate) and rate > 0):
+        raise ConfigError("--rate", f"must be a positive finite number, got {rate}", "e.g. --rate 1 (recorded speed) or --rate 10")
+    if not (is_number(wait_for_subscribers_s) and wait_for_subscribers_s >= 0):
+        raise ConfigError("--wait-for-subscribers", f"must be a finite number >= 0, got {wait_for_subscribers_s}",
+                          "give seconds, e.g. --wait-for-subscribers 5")
     own = context is None
     if own:
         rclpy.init()

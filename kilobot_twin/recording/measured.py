@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, is_number, is_whole
 
 FORMAT = "kilobot-twin/measured-v1"
 KINDS = ("motion", "light_sweep", "blink")
@@ -120,11 +120,6 @@ def _need(meta, key, types, where, fix):
     return v
 
 
-def _finite(v) -> bool:
-    """A finite number of YAML (int or float, not a bool)."""
-    return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
-
-
 def _typename(types):
     types = types if isinstance(types, tuple) else (types,)
     return " or ".join({int: "an integer", float: "a number", str: "a string", list: "a list"}.get(t, t.__name__)
@@ -148,7 +143,7 @@ def load_meta(folder: Path) -> dict:
     if kind not in KINDS:
         raise ConfigError(f"{where}: kind", f"unknown kind {kind!r}", f"use one of {', '.join(KINDS)}")
     robots = _need(meta, "robots", list, where, "list the robot ids, e.g. robots: [0, 1, 2]")
-    if not robots or any(isinstance(r, bool) or not isinstance(r, int) for r in robots):
+    if not robots or any(not is_whole(r) for r in robots):
         raise ConfigError(f"{where}: robots", "expected a non-empty list of integer ids", "e.g. robots: [0, 1, 2]")
     if len(set(robots)) != len(robots):
         raise ConfigError(f"{where}: robots", "ids are repeated", "list each robot once")
@@ -174,17 +169,17 @@ def load_meta(folder: Path) -> dict:
                               "e.g. half_period_ticks: 30, nominal_tick_hz: 31")
     if "camera_axis_m" in meta:  # motion: where the camera's optical axis meets the floor
         v = meta["camera_axis_m"]
-        if not isinstance(v, list) or len(v) != 2 or not all(_finite(a) for a in v):
+        if not isinstance(v, list) or len(v) != 2 or not all(is_number(a) for a in v):
             raise ConfigError(f"{where}: camera_axis_m", f"expected [x, y] in metres, got {v!r}",
                               "give the floor point under the camera's optical axis, e.g. camera_axis_m: [0.02, -0.01]")
     if "camera_axis_sd_m" in meta:
         v = meta["camera_axis_sd_m"]
-        if not (_finite(v) and v > 0):
+        if not (is_number(v) and v > 0):
             raise ConfigError(f"{where}: camera_axis_sd_m", f"expected a positive number, got {v!r}",
                               "give how well camera_axis_m is known, in metres, e.g. 0.01")
     if "tracking_noise_m" in meta:
         v = meta["tracking_noise_m"]
-        if not (_finite(v) and v >= 0):
+        if not (is_number(v) and v >= 0):
             raise ConfigError(f"{where}: tracking_noise_m", f"expected a non-negative number, got {v!r}", "give metres")
     return meta
 

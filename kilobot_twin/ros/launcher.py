@@ -20,7 +20,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import ConfigError
+from ..errors import ConfigError, is_number
 from ..outputs import check_out_dir
 from ..recording.topics import topic_group
 from ..core.scenarios import NAMED, is_scenario_file, load_swarm_traits, named_scenario, scenario_file
@@ -117,7 +117,7 @@ def _node_cmd(name: str, **params) -> list[str]:
 
 
 def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, traits: str | None, out: str,
-             swarms: int = 1):
+             swarms: int = 1, timeout_s: float | None = None):
     """Reject bad input before any process starts (one line naming the option; exit 2)."""
     sc = None
     if is_scenario_file(scenario):
@@ -137,8 +137,11 @@ def validate(scenario: str, robots: int, duration: float, seed: int, mode: str, 
     if swarms > 1 and (sc or named_scenario(scenario)).coupling_per_s > 0:
         raise ConfigError("--swarms", "Kuramoto coupling acts within one swarm process only",
                           "run a coupled scenario (sync) with --swarms 1")
-    if not duration > 0:
-        raise ConfigError("--duration", f"must be positive, got {duration}", "give simulated seconds")
+    if not (is_number(duration) and duration > 0):
+        raise ConfigError("--duration", f"must be a positive finite number, got {duration}", "give simulated seconds")
+    if timeout_s is not None and not (is_number(timeout_s) and timeout_s > 0):
+        raise ConfigError("--timeout", f"must be a positive finite number, got {timeout_s}",
+                          "give wall seconds, or leave it out for the default")
     if seed < 0:
         raise ConfigError("--seed", f"must be >= 0, got {seed}", "give a non-negative integer")
     if traits:
@@ -153,7 +156,7 @@ def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 2
 
     ``echo(str)`` receives progress lines.
     """
-    validate(scenario, robots, duration, seed, mode, traits, out, swarms)
+    validate(scenario, robots, duration, seed, mode, traits, out, swarms, timeout_s)
     echo = echo or (lambda s: None)
     bag = Path(out)
     logs = bag.parent / f"{bag.name}.logs"

@@ -20,7 +20,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from ..core import behaviors as B
 from ..core.scenario import behavior_from_dict
 from ..core.traits import TRAIT_DEFAULTS, TRAIT_NAMES, RobotTraits, traits_from_mapping
-from ..errors import ConfigError
+from ..errors import ConfigError, is_number, is_whole
 
 
 def declare(node, name: str, default: Any, description: str = "", read_only: bool = True) -> Any:
@@ -31,8 +31,8 @@ def declare(node, name: str, default: Any, description: str = "", read_only: boo
 
 def number(node, name: str, default: float, minimum: float | None = None, strict: bool = False) -> float:
     v = declare(node, name, float(default))
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise ConfigError(name, f"expected a number, got {v!r}", f"e.g. -p {name}:={default}")
+    if not is_number(v):
+        raise ConfigError(name, f"expected a finite number, got {v!r}", f"e.g. -p {name}:={default}")
     v = float(v)
     if minimum is not None and (v < minimum or (strict and v == minimum)):
         bound = ">" if strict else ">="
@@ -42,7 +42,7 @@ def number(node, name: str, default: float, minimum: float | None = None, strict
 
 def integer(node, name: str, default: int, minimum: int | None = None) -> int:
     v = declare(node, name, int(default))
-    if isinstance(v, bool) or not isinstance(v, int):
+    if not is_whole(v):
         raise ConfigError(name, f"expected an integer, got {v!r}", f"e.g. -p {name}:={default}")
     if minimum is not None and v < minimum:
         raise ConfigError(name, f"must be >= {minimum}, got {v}", f"e.g. -p {name}:={default}")

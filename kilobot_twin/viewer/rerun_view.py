@@ -20,6 +20,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from ..core.constants import LED_BLUE, LED_OFF, LED_RED
+from ..errors import is_number
 from ..recording.swarm_data import SwarmRecording
 
 APP_ID = "kilobot_twin"
@@ -193,7 +194,7 @@ def _traits_markdown(rec: SwarmRecording, bias: np.ndarray) -> str:
     for i, rid in enumerate(rec.robot_ids):
         doc = rec.traits.get(int(rid), {})
         tr = doc.get("traits", doc) if isinstance(doc, dict) else {}
-        tr = {k: v for k, v in tr.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+        tr = {k: v for k, v in tr.items() if is_number(v, finite=False)}
         for k in tr:
             if k not in keys:
                 keys.append(k)

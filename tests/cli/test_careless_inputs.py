@@ -74,6 +74,8 @@ CASES = [
     (["gap", "data", "--model", "missing.yaml", "--out", "gap_out"], "missing.yaml"),
     (["gap", "walk_data", "--out", "gap_out"], "behavior"),
     (["gap", "data", "walk_data", "--out", "gap_out"], "random_walk"),
+    (["gap", "data", "--seed", "-1", "--out", "gap_out"], "--seed"),  # was a traceback, and gap_out was left
+    (["synth", "--kind", "motion", "--seed", "-1", "--out", "new_data"], "--seed"),
     (["traits", "draw", "missing.yaml", "--out", "t.yaml"], "missing.yaml"),
     (["traits", "draw", POP, "--out", "emptydir"], "--out"),
     (["traits", "draw", POP, "--out", "afile.txt/t.yaml"], "--out"),

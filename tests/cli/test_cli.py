@@ -99,6 +99,11 @@ BAD_CONFIGS = [
     ({"scenario": {}, "swarm": {"robots": {0: {"heading_bias": "x"}}}}, "robots.0.heading_bias"),
     ({"scenario": {"arena": {"walls": "yes"}}}, "arena.walls"),
     ({"scenaro": {}}, "scenaro"),
+    # YAML's .nan and .inf are floats: every number must be finite (they were taken, or crashed)
+    ({"scenario": {"coupling_per_s": float("nan")}}, "coupling_per_s"),
+    ({"scenario": {"neighbour_radius_m": float("inf")}}, "neighbour_radius_m"),
+    ({"scenario": {"floor_tilt_direction_rad": float("nan")}}, "floor_tilt_direction_rad"),
+    ({"scenario": {"cost_window_steps": float("inf")}}, "cost_window_steps"),
 ]
 
 

@@ -83,6 +83,16 @@ def test_bad_light_config():
         scenario_from_dict({"light": {"kind": "gaussian", "sigma_m": -1}})
 
 
+@pytest.mark.parametrize("key, value", [("cost_window_steps", 2.5), ("cost_window_steps", 0),
+                                        ("coupling_per_s", float("inf")), ("floor_tilt", float("nan")),
+                                        ("dt_s", float("nan"))])
+def test_a_scenario_number_that_is_not_finite_or_not_whole_names_its_key(key, value):
+    """A window of 2.5 steps was cut to 2 and one of 0 divided by zero; .inf and .nan were taken."""
+    with pytest.raises(ConfigError) as e:
+        scenario_from_dict({key: value})
+    assert str(e.value).startswith(key + ":"), e.value
+
+
 def test_ms_to_ticks_quantises_like_kilo_ticks():
     assert ms_to_ticks(2100, 10) == 21
     assert ms_to_ticks(50, 10) == 0  # the authors' delay(50) does nothing at 10 ticks/s

@@ -48,8 +48,15 @@ def test_defaults_and_robot_ids():
     ({"population": {"n": 3, "heading_bias": {"dist": "beta"}}}, "population.heading_bias.dist"),
     ({"population": {"n": 3, "heading_bias": {"dist": "uniform", "low": 1}}}, "population.heading_bias.high"),
     ({"population": {"n": 3, "clock_rate": {"dist": "normal", "mean": 1, "sd": -1}}}, "population.clock_rate.sd"),
+    ({"population": {"n": 3, "heading_bias": {"dist": "uniform", "low": 0, "high": float("inf")}}},
+     "population.heading_bias.high"),
+    ({"population": {"n": 3, "heading_bias": {"dist": "normal", "mean": float("nan"), "sd": 0.01}}},
+     "population.heading_bias.mean"),
     ({"robots": {}, "population": {"n": 1}}, "robots"),
     ({"robot": {}}, "robot"),
+    ({"population": {"n": 3, "seed": 5}}, "population.seed"),  # it was passed over silently
+    ({"seed": -1, "population": {"n": 3}}, "seed"),  # it was a traceback
+    ({"seed": 1.5, "population": {"n": 3}}, "seed"),  # it was cut to 1
 ])
 def test_bad_traits_give_one_line_error_naming_the_field(doc, field):
     with pytest.raises(ConfigError) as e:

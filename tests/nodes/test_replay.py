@@ -92,7 +92,8 @@ def test_qos_follows_the_recorded_offer():
     assert qos_from_yaml(DATA_QOS).durability == DurabilityPolicy.VOLATILE
 
 
-@pytest.mark.parametrize("args,field", [(["--rate", "0"], "--rate"), (["--topics", "/nope"], "--topics")])
+@pytest.mark.parametrize("args,field", [(["--rate", "0"], "--rate"), (["--rate", "inf"], "--rate"), (["--topics", "/nope"], "--topics"),
+                                        (["--wait-for-subscribers", "nan"], "--wait-for-subscribers")])
 def test_replay_refuses_bad_input_with_one_line(tmp_path, capsys, args, field):
     src = fixture_bag(tmp_path / "src")
     assert cli_main(["replay", str(src), *args]) == 2

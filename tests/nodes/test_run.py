@@ -106,6 +106,8 @@ def test_run_takes_a_scenario_file_with_an_image_light_field(tmp_path):
     (["run", "--mode", "warp"], "--mode"),
     (["run", "--traits", "/no/such.yaml"], "--traits"),
     (["run", "--duration", "-1"], "--duration"),
+    (["run", "--duration", "inf"], "--duration"),  # started a run that never ended
+    (["run", "--timeout", "nan"], "--timeout"),
 ])
 def test_run_refuses_bad_input_with_one_line_and_exit_2(args, field, tmp_path):
     res = cli(*args, "--out", str(tmp_path / "x"))
@@ -122,6 +124,8 @@ def test_run_refuses_bad_input_with_one_line_and_exit_2(args, field, tmp_path):
     ("swarm", "traits_file", "/no/such/traits.yaml"),
     ("world", "scenario", "moon"),
     ("world", "mode", "warp"),
+    ("world", "duration_s", ".nan"),  # YAML's .nan and .inf are floats; they were taken
+    ("world", "clock_hz", ".inf"),
 ])
 def test_nodes_refuse_bad_parameters_with_one_line_and_exit_2(node, param, value):
     res = subprocess.run([sys.executable, "-m", f"kilobot_twin.nodes.{node}", "--ros-args", "-p", f"{param}:={value}"],
