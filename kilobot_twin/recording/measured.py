@@ -152,20 +152,20 @@ def load_meta(folder: Path) -> dict:
         raise ConfigError(f"{where}: trials", f"{trials} is not positive", "trials: NUMBER >= 1")
     for key in ("dt_s", "duration_s"):
         v = _need(meta, key, (int, float), where, f"{key}: SECONDS")
-        if not (v > 0 and math.isfinite(v)):
+        if not (is_number(v) and v > 0):
             raise ConfigError(f"{where}: {key}", f"{v} is not a positive number of seconds", f"{key}: SECONDS > 0")
     if kind == "motion":
         beh = _need(meta, "behavior", str, where, f"behavior is one of {', '.join(BEHAVIORS)}")
         if beh not in BEHAVIORS:
             raise ConfigError(f"{where}: behavior", f"unknown behaviour {beh!r}", f"use one of {', '.join(BEHAVIORS)}")
         v = _need(meta, "nominal_speed_m_s", (int, float), where, "nominal_speed_m_s: the commanded speed")
-        if not v > 0:
-            raise ConfigError(f"{where}: nominal_speed_m_s", f"{v} is not positive", "give the commanded speed in m/s")
+        if not (is_number(v) and v > 0):
+            raise ConfigError(f"{where}: nominal_speed_m_s", f"{v} is not a positive finite speed", "give the commanded speed in m/s")
     if kind == "blink":
         h = _need(meta, "half_period_ticks", int, where, "half_period_ticks: N (toggle every N ticks)")
         f = _need(meta, "nominal_tick_hz", (int, float), where, "nominal_tick_hz: e.g. 31")
-        if h < 1 or not f > 0:
-            raise ConfigError(f"{where}: half_period_ticks", "must be >= 1 with a positive nominal_tick_hz",
+        if h < 1 or not (is_number(f) and f > 0):
+            raise ConfigError(f"{where}: half_period_ticks", "must be >= 1 with a positive finite nominal_tick_hz",
                               "e.g. half_period_ticks: 30, nominal_tick_hz: 31")
     if "camera_axis_m" in meta:  # motion: where the camera's optical axis meets the floor
         v = meta["camera_axis_m"]

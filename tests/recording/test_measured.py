@@ -115,6 +115,7 @@ def test_bad_rows_name_file_line_column(tmp_path, csv, where):
     (META + "tracking_noise_m: -0.001\n", "tracking_noise_m"),
     (META + "tracking_noise_m: .inf\n", "tracking_noise_m"),
     (META + "tracking_noise_m: .nan\n", "tracking_noise_m"),
+    (META.replace("nominal_speed_m_s: 0.0113", "nominal_speed_m_s: .inf"), "nominal_speed_m_s"),  # was taken
 ])
 def test_bad_meta_names_the_key(tmp_path, meta, field):
     with pytest.raises(ConfigError) as e:
