@@ -23,6 +23,7 @@ wander over its halves fall short of white noise's by 2 sds of that ratio, which
 tau from these summaries would need (the ratio's sd scales as 1 / sqrt(robot-trials)).
 
     python benchmarks/noise_colour.py [--datasets 1000] [--tracking-mm 2]
+    python benchmarks/noise_colour.py --bias-spread
 """
 
 from __future__ import annotations
@@ -70,11 +71,42 @@ def white_half_difference(samples: int) -> float:
     return 2.0 * float(v @ cov @ v)  # two independent halves
 
 
+def bias_spread(datasets: int) -> None:
+    """The halves' reading of Eq. 6's trial-to-trial bias spread (``--bias-spread``): per dataset of
+    12 robots x 4 trials, the trial turn rates' pooled within-robot variance less a quarter of the
+    halves' mean squared difference (the noise's part of a whole trial's turn rate, for a Brownian
+    heading), against the truth's spread in turn rate, b v / 0.025 m."""
+    n, k = 12, 4
+    v = synth.FORWARD_SPEED_M_S
+    print(f"bias spread from the halves, {datasets} datasets of {n} x {k} per row (squared spread in rad^2/s^2)")
+    print("tracking_mm  tau_s  spread_b  truth_rad_s  read: mean of b^2 (truth b^2)  sd per dataset  median spread")
+    for j, (trk, tau, b) in enumerate((t, u, b) for t in (2.0, 6.0) for u in (0.0, 2.0) for b in (0.0, 0.002, 0.004)):
+        sw = effects.nominal_model("motion", np.arange(n)).swarm.with_values(
+            sigma_omega=np.full(n, SIGMA), heading_noise_tau=np.full(n, tau), bias_trial_sd=np.full(n, b))
+        runs = datasets * k
+        res = engine.simulate(synth.motion_scenario(DURATION, DT), sw, 500 + j, runs=np.arange(runs),
+                              trials=np.tile(np.arange(k), datasets), record_every=1)
+        rng = np.random.default_rng(600 + j)
+        x, y = (res.traj[c] + trk / 1e3 * rng.standard_normal(res.traj[c].shape) for c in ("x", "y"))
+        h = x.shape[-1] // 2
+        whole, first, second = (summaries.motion(x[..., a:z], y[..., a:z], DT)["turn_rate"].reshape(datasets, k, n)
+                                for a, z in ((0, None), (0, h), (h, 2 * h)))
+        b2 = np.nanvar(whole, axis=1, ddof=1).mean(-1) - np.nanmean((first - second) ** 2, axis=(1, 2)) / 4
+        truth = b * v / 0.025
+        print(f"{trk:11.0f}  {tau:5.1f}  {b:8.3f}  {truth:11.4f}  {b2.mean():20.2e} ({truth**2:.1e})  {b2.std(ddof=1):14.1e}"
+              f"  {np.median(np.sqrt(np.maximum(b2, 0))):13.4f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--datasets", type=int, default=1000, help="datasets of 12 x 4 per tau (default 1000)")
     ap.add_argument("--tracking-mm", type=float, default=2.0, help="white tracking noise, mm (default 2; at 0.5 the wander lags are 1-5 s)")
+    ap.add_argument("--bias-spread", action="store_true",
+                    help="instead: the halves' reading of the trial-to-trial bias spread (40 datasets per row)")
     a = ap.parse_args()
+    if a.bias_spread:
+        bias_spread(40)
+        return
     n = a.datasets * PER_DATASET
     T = int(round(DURATION / DT)) + 1
     h = T // 2
