@@ -46,12 +46,19 @@ def _connect(scheduler: str | None) -> None:
         client(scheduler)
 
 
-def draw_traits(population: str, out: str, seed: int = 0, robots: int | None = None) -> Path:
-    """Draw a swarm from a population file (``population: {...}``) and save it as robots."""
-    from .core.traits import load_swarm, save_swarm
+def draw_traits(population: str, out: str, seed: int | None = None, robots: int | None = None) -> Path:
+    """Draw a swarm from a population file (``population: {...}``) and save it as robots. The seed
+    is ``seed``, else the file's ``seed:``, else 0; a file whose own seed differs from ``seed`` is
+    refused (the file's would win, and ``--seed`` would do nothing)."""
+    from .core.traits import load_swarm, load_yaml, save_swarm
 
     check_out_file(out)
-    sw = load_swarm(population, seed=seed, n=robots)
+    doc = load_yaml(population)
+    own = doc.get("seed") if isinstance(doc, dict) else None
+    if seed is not None and own is not None and own != seed:
+        raise ConfigError("--seed", f"{population} sets its own seed: {own!r}, which the draw takes over --seed {seed}",
+                          "leave out --seed, or remove seed: from the file")
+    sw = load_swarm(population, seed=0 if seed is None else seed, n=robots)
     save_swarm(sw, out)
     return Path(out)
 
@@ -276,7 +283,7 @@ def _parser() -> argparse.ArgumentParser:
     td = tsub.add_parser("draw", help="draw a swarm from a population file and save it per robot")
     td.add_argument("population")
     td.add_argument("--out", required=True)
-    td.add_argument("--seed", type=_seed, default=0)
+    td.add_argument("--seed", type=_seed, help="the draw's seed (default: the file's seed:, else 0)")
     td.add_argument("--robots", type=_positive_int)
     tc = tsub.add_parser("check", help="validate a traits file")
     tc.add_argument("path")

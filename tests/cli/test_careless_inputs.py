@@ -27,6 +27,7 @@ def scratch(tmp_path_factory):
     (d / "emptydir").mkdir()
     (d / "cfg.yaml").write_text(yaml.safe_dump(CFG))
     (d / "notyaml.yaml").write_text("robots: [\n")
+    (d / "seeded.yaml").write_text("seed: 7\npopulation: {n: 3}\n")
     from kilobot_twin.gap.synth import synth
 
     synth("motion", "none", d / "data", robots=2, trials=2, seed=1, duration_s=10.0)
@@ -79,6 +80,7 @@ CASES = [
     (["traits", "draw", "missing.yaml", "--out", "t.yaml"], "missing.yaml"),
     (["traits", "draw", POP, "--out", "emptydir"], "--out"),
     (["traits", "draw", POP, "--out", "afile.txt/t.yaml"], "--out"),
+    (["traits", "draw", "seeded.yaml", "--seed", "4", "--out", "t.yaml"], "--seed"),  # --seed did nothing
     (["traits", "check", "missing.yaml"], "missing.yaml"),
     (["traits", "check", "emptydir"], "emptydir"),
     (["traits", "check", "notyaml.yaml"], "notyaml.yaml"),

@@ -67,6 +67,27 @@ def test_traits_draw_then_check(tmp_path):
     assert run_cli("traits", "check", str(out)).returncode == 0
 
 
+def test_traits_draw_takes_the_seed_given_else_the_file_s_else_0(tmp_path):
+    """``--seed`` draws; without it the file's ``seed:``; without either, 0. A file whose seed
+    differs from ``--seed`` is refused (the file's seed used to win and --seed did nothing)."""
+    from kilobot_twin.cli import draw_traits
+    from kilobot_twin.errors import ConfigError
+
+    pop = "population: {n: 5, heading_bias: {dist: normal, mean: 0, sd: 0.01}}\n"
+    bare, seeded = tmp_path / "bare.yaml", tmp_path / "seeded.yaml"
+    bare.write_text(pop)
+    seeded.write_text("seed: 7\n" + pop)
+
+    def drawn(path, seed, name):
+        return yaml.safe_load(draw_traits(str(path), str(tmp_path / name), seed).read_text())["robots"]
+
+    assert drawn(seeded, None, "a.yaml") == drawn(bare, 7, "b.yaml") == drawn(seeded, 7, "c.yaml")
+    assert drawn(bare, None, "d.yaml") == drawn(bare, 0, "e.yaml") != drawn(bare, 7, "f.yaml")
+    with pytest.raises(ConfigError, match="--seed"):
+        draw_traits(str(seeded), str(tmp_path / "g.yaml"), 4)
+    assert not (tmp_path / "g.yaml").exists()
+
+
 BAD = [
     ("robots:\n  0: {heading_bias: 2.5}\n", "robots.0.heading_bias"),
     ("robots:\n  0: {clock_rate: -1}\n", "robots.0.clock_rate"),
