@@ -105,6 +105,9 @@ def from_results(path: str | Path, point: int = 0, run: int = 0) -> SwarmRecordi
     path = Path(path)
     res = load_results(path)
     meta = res["meta"]
+    points = len(meta["points"])
+    if not 0 <= point < points:  # (a negative point was read as "no trajectories", as was one past the grid)
+        raise ConfigError("--point", f"grid point {point} is not in {path} (points 0..{points - 1})", "pick a grid point")
     traj_dir = meta.get("trajectories")
     traj_dir = Path(traj_dir) if traj_dir else path.with_suffix("").parent / (path.stem + "_traj")
     if not traj_dir.is_absolute() and not traj_dir.is_dir():

@@ -98,7 +98,7 @@ def test_bias_colours_follow_the_paper_map():
     assert tuple(c[3]) == (128, 128, 128)
 
 
-def test_view_of_batch_results_npz(tmp_path):
+def test_view_of_batch_results_npz(tmp_path, capsys):
     from kilobot_twin.cli import main
 
     cfg = tmp_path / "c.yaml"
@@ -110,6 +110,14 @@ def test_view_of_batch_results_npz(tmp_path):
     ents = chunks_by_entity(tmp_path / "r.rrd")
     assert len(column(ents["/arena/robots"], "Points3D:positions")) == 51
     assert sum(1 for e in ents if e.startswith("/light/kilobot_")) == 4
+    # A point or run outside the results: one line naming the option (a point past the grid, or a
+    # negative one, was reported as trajectories never recorded).
+    capsys.readouterr()
+    for args, option in ((["--point", "1"], "--point"), (["--point", "-1"], "--point"), (["--run", "2"], "--run")):
+        assert main(["view", str(tmp_path / "r.npz"), *args, "--out", str(tmp_path / "x.rrd")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].split(": error: ")[1].startswith(option + ":"), err
+        assert not (tmp_path / "x.rrd").exists()
 
 
 def test_view_refuses_a_missing_source_with_one_line(tmp_path, capsys):
