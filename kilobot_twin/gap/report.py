@@ -18,6 +18,17 @@ def _fmt(v) -> str:
     return str(v)
 
 
+def _white_noise_text(lags) -> str:
+    """What the fitted heading-noise intensity is: white noise that wanders as much as the tracks
+    between the summary's two lags (README, "Twin vs measurement": coloured turn noise)."""
+    return (f"sigma_omega is the white heading noise that makes the tracks wander as much as measured between "
+            f"{lags[0]:.2g} and {lags[1]:.2g} s. Turn noise correlated over a second or two wanders less over such "
+            f"lags: its long-run intensity is then higher (by 2-16 % at a correlation of 1-2 s, more under lighter "
+            f"tracking noise), and the turn rates' excess from trial to trial is read as bias_trial_sd. Telling the "
+            f"two apart takes about 700 robot-trials at a correlation of 2 s and 2 mm of tracking noise "
+            f"(benchmarks/noise_colour.py).")
+
+
 def _tracked_point_text(tp: dict) -> str:
     """What the named speed spread would take of the tracker (``workflow.tracked_point_offset``):
     a tracked point that far to the side of the rotation centre, and whether a point on the
@@ -159,7 +170,11 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
         if s.get("scenario"):
             lines += ["", "Scenario fields the named effects fitted for the whole swarm (keys of a scenario file, "
                       "e.g. for `kilobot-twin run`): " + ", ".join(f"`{k}` {_fmt(v)}" for k, v in s["scenario"].items())]
-        lines += ["", "Nuisances fitted by the base model: " + ", ".join(f"{k} {_fmt(v)}" for k, v in s.get("nuisances", {}).items()), ""]
+        lines += ["", "Nuisances fitted by the base model: " + ", ".join(f"{k} {_fmt(v)}" for k, v in s.get("nuisances", {}).items())]
+        lags = s.get("nuisances", {}).get("wander_lags_s")
+        if lags:
+            lines += ["", _white_noise_text(lags)]
+        lines.append("")
         fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
         res = residuals[j]
         x = np.arange(len(s["robots"]))

@@ -46,7 +46,7 @@ from ..recording import measured
 from ..errors import ConfigError
 from . import effects as E
 from . import summaries, synth
-from .model import COMPONENTS, Conditions, measured_summaries, simulate
+from .model import COMPONENTS, Conditions, measured_summaries, simulate, total_tracking_noise
 
 
 #: One-sided confidence of the naming rule's clause 1 (gain over the current model) and of its
@@ -1946,6 +1946,9 @@ def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
         return {"sigma_omega_rad_sqrt_s": float(sw.sigma_omega.mean()), "sigma_v_m_sqrt_s": float(sw.sigma_v.mean()),
                 "speed_trial_sd": float(base.speed_trial_sd), "bias_trial_sd": float(sw.bias_trial_sd.mean()),
                 "tracking_noise_m": float(cond.tracking_noise_m),
+                # the lags of the wander that sigma_omega is read from (white noise that wanders as
+                # much; a correlated turn noise's long-run intensity is higher: README)
+                "wander_lags_s": [float(v) for v in summaries.wander_lags(total_tracking_noise(cond))],
                 **({"tracking_correlated_m": float(cond.tracking_correlated_m), "tracking_tau_s": float(cond.tracking_tau_s)}
                    if cond.tracking_correlated_m > 0 else {}),
                 **({"pixel_m": [float(g[0]) for g in cond.lattice]} if cond.lattice is not None else {}),
