@@ -2082,4 +2082,8 @@ def _load_data(path: str) -> measured.Dataset:
     if ds.kind == "motion" and ds.meta.get("behavior", "straight") != "straight":
         raise ConfigError(f"{where}: behavior", f"the gap workflow models straight runs, not {ds.meta['behavior']}",
                           "hold the twin against trials in which the robots were commanded to drive straight")
+    # Every score is of a held-out trial under a fit to the others (a single trial was a traceback).
+    if ds.trials < 2:
+        raise ConfigError(f"{where}: trials", f"{ds.trials} trial: the workflow scores each trial held out from a fit "
+                          "to the others", "record at least 2 trials (3 or more to tell robots' traits from chance)")
     return ds

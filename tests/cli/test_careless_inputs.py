@@ -31,6 +31,7 @@ def scratch(tmp_path_factory):
     from kilobot_twin.gap.synth import synth
 
     synth("motion", "none", d / "data", robots=2, trials=2, seed=1, duration_s=10.0)
+    synth("blink", "none", d / "one_trial", robots=2, trials=1, seed=1, duration_s=10.0)
     # The same tracks labelled as a random walk: the gap workflow models straight runs only.
     shutil.copytree(d / "data", d / "walk_data")
     meta = yaml.safe_load((d / "walk_data" / "meta.yaml").read_text())
@@ -75,7 +76,8 @@ CASES = [
     (["gap", "data", "--model", "missing.yaml", "--out", "gap_out"], "missing.yaml"),
     (["gap", "walk_data", "--out", "gap_out"], "behavior"),
     (["gap", "data", "walk_data", "--out", "gap_out"], "random_walk"),
-    (["gap", "data", "--seed", "-1", "--out", "gap_out"], "--seed"),  # was a traceback, and gap_out was left
+    (["gap", "data", "--seed", "-1", "--out", "gap_out"], "--seed"),
+    (["gap", "one_trial", "--out", "gap_out"], "trials"),  # was a traceback, and gap_out was left  # was a traceback, and gap_out was left
     (["synth", "--kind", "motion", "--seed", "-1", "--out", "new_data"], "--seed"),
     (["traits", "draw", "missing.yaml", "--out", "t.yaml"], "missing.yaml"),
     (["traits", "draw", POP, "--out", "emptydir"], "--out"),
