@@ -120,8 +120,11 @@ def config_from_dict(data: Mapping[str, Any], source: str = "", traits_path: str
     grid = data.get("grid") or {}
     if not isinstance(grid, Mapping) or any(not isinstance(v, list) or not v for v in grid.values()):
         raise ConfigError("grid", "expected a mapping of scenario key: [values]", "write e.g. grid: {behavior.p_right: [0.25, 0.5]}", source)
-    cfg = Campaign(scenario, swarm, seed, runs, dict(grid), _int(data, "record_every", 0, source),
-                   bool(data.get("trials_from_runs", False)))
+    trials_from_runs = data.get("trials_from_runs", False)
+    if not isinstance(trials_from_runs, bool):  # (bool() of .nan or of the string "false" is True)
+        raise ConfigError("trials_from_runs", f"expected true or false, got {trials_from_runs!r}", "write true or false",
+                          source)
+    cfg = Campaign(scenario, swarm, seed, runs, dict(grid), _int(data, "record_every", 0, source), trials_from_runs)
     for point in cfg.points():  # surface bad grid values now, with their key, rather than inside a worker
         cfg.scenario_at(point)
     if scenario.start.kind == "poses":  # every (run, robot) has its start pose

@@ -125,6 +125,7 @@ BAD_CONFIGS = [
     ({"scenario": {"neighbour_radius_m": float("inf")}}, "neighbour_radius_m"),
     ({"scenario": {"floor_tilt_direction_rad": float("nan")}}, "floor_tilt_direction_rad"),
     ({"scenario": {"cost_window_steps": float("inf")}}, "cost_window_steps"),
+    ({"scenario": {}, "trials_from_runs": "false"}, "trials_from_runs"),  # bool("false") was True
 ]
 
 
