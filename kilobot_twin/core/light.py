@@ -133,7 +133,13 @@ def field_from_dict(data: Mapping[str, Any], source: str = "", where: str = "lig
     for k, v in args.items():
         if k not in names:
             raise ConfigError(f"{where}{k}", f"not a parameter of the {kind} field", f"use {', '.join(sorted(names))}", source)
-        if k in ("center", "extent_m"):
+        if k in ("center", "extent_m"):  # (a wrong length or a word was a traceback, .nan was taken)
+            size, shape = (2, "[x, y]") if k == "center" else (4, "[xmin, xmax, ymin, ymax]")
+            if not isinstance(v, (list, tuple)) or len(v) != size or not all(is_number(c) for c in v):
+                raise ConfigError(f"{where}{k}", f"expected {shape} in metres, got {v!r}", f"write {k}: {shape}", source)
+            if k == "extent_m" and not (v[0] < v[1] and v[2] < v[3]):
+                raise ConfigError(f"{where}{k}", f"expected xmin < xmax and ymin < ymax, got {list(v)}",
+                                  f"write {k}: {shape}", source)
             args[k] = tuple(float(c) for c in v)
         elif k not in ("image", "path"):
             if not is_number(v):
@@ -170,15 +176,22 @@ def _load_image(p, where, source) -> np.ndarray:
     """The image at ``p`` (a path from :func:`_image_path`) as floats in [0, 1]."""
     if not p.is_file():
         raise ConfigError(where, f"image {p} not found", "check the path", source)
-    if p.suffix == ".npy":
-        img = np.load(p)
-    else:
-        import matplotlib.image as mpimg
+    try:  # (a file that is no image was a traceback from NumPy or Pillow)
+        if p.suffix == ".npy":
+            img = np.load(p)
+        else:
+            import matplotlib.image as mpimg
 
-        img = mpimg.imread(p)
-        if img.ndim == 3:
-            img = img[..., :3].mean(axis=-1)
-    img = np.asarray(img, dtype=np.float64)
+            img = mpimg.imread(p)
+            if img.ndim == 3:
+                img = img[..., :3].mean(axis=-1)
+        img = np.asarray(img, dtype=np.float64)
+    except (OSError, ValueError, TypeError, SyntaxError) as exc:  # (Pillow: SyntaxError for a bad PNG)
+        raise ConfigError(where, f"{p} is not a readable image ({type(exc).__name__})",
+                          "give a .npy array or a picture (.png) of the light", source) from None
+    if img.ndim != 2 or min(img.shape) < 1 or not np.all(np.isfinite(img)) or img.min() < 0:
+        raise ConfigError(where, f"{p} holds no 2-D image of finite intensities >= 0 (shape {img.shape})",
+                          "give a .npy array of rows x columns, or a picture (.png)", source)
     if img.max() > 1.0:
         img = img / img.max()
     return img

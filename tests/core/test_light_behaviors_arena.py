@@ -83,6 +83,27 @@ def test_bad_light_config():
         scenario_from_dict({"light": {"kind": "gaussian", "sigma_m": -1}})
 
 
+@pytest.mark.parametrize("light, field", [
+    ({"kind": "gaussian", "center": [float("nan"), 0.0]}, "light.center"),  # was taken
+    ({"kind": "gaussian", "center": [0.0]}, "light.center"),  # was a traceback
+    ({"kind": "gaussian", "center": "ab"}, "light.center"),  # was a traceback
+    ({"kind": "image", "path": "image.npy", "extent_m": [1.0, -1.0, -1.0, 1.0]}, "light.extent_m"),
+    ({"kind": "image", "path": "not_an_image.png"}, "light.path"),  # was Pillow's traceback
+    ({"kind": "image", "path": "nan.npy"}, "light.path"),  # was taken
+    ({"kind": "image", "path": "row.npy"}, "light.path"),  # one row of numbers: no image
+])
+def test_a_light_field_that_is_not_one_names_its_key(light, field, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    np.save("image.npy", np.array([[0.1, 0.5], [0.2, 0.3]]))
+    np.save("nan.npy", np.array([[0.1, np.nan], [0.2, 0.3]]))
+    np.save("row.npy", np.array([0.1, 0.2]))
+    (tmp_path / "not_an_image.png").write_text("robots: {}\n")
+    with pytest.raises(ConfigError) as e:
+        scenario_from_dict({"light": light})
+    assert str(e.value).startswith(field + ":") and "\n" not in str(e.value), e.value
+    assert scenario_from_dict({"light": {"kind": "image", "path": "image.npy"}}).light.image.shape == (2, 2)
+
+
 @pytest.mark.parametrize("key, value", [("cost_window_steps", 2.5), ("cost_window_steps", 0),
                                         ("coupling_per_s", float("inf")), ("floor_tilt", float("nan")),
                                         ("dt_s", float("nan"))])
