@@ -1108,11 +1108,25 @@ def _same_data(library: dict, a: str, b: str) -> bool:
 
 # --- the loop -------------------------------------------------------------------------------------
 
+#: The summary each kind's fit cannot do without (a robot needs it in two trials, for a spread).
+_NEEDED = {"motion": "turn_rate", "light_sweep": "gain", "blink": "toggle_rate"}
+
+
+def _enough_to_summarise(ds: measured.Dataset, meas: dict) -> None:
+    """A one-line error unless some robot's tracks can be summarised in two trials (tracks of a
+    sample or two each left every summary NaN, and the noise fit stopped on a NumPy traceback)."""
+    key = _NEEDED[ds.kind]
+    if np.isfinite(meas[key]).sum(axis=0).max(initial=0) < 2:
+        raise ConfigError(str(ds.path), f"no robot has two trials whose tracks give a {key} (each {ds.kind} summary "
+                          "needs a track of some seconds)", "record longer tracks, or check the t_s column")
+
+
 def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = None, log=print) -> dict:
     """Run the workflow on one dataset; returns the report section and the final model."""
     t0 = time.perf_counter()
     cond, meas = measured_summaries(ds)
     kind = ds.kind
+    _enough_to_summarise(ds, meas)
     meas = E.Summaries(meas, np.arange(cond.trials))
     fit_base = base is None
     start = (dataclasses.replace(base, forward_speed_m_s=cond.forward_speed_m_s) if base is not None

@@ -32,6 +32,9 @@ def scratch(tmp_path_factory):
 
     synth("motion", "none", d / "data", robots=2, trials=2, seed=1, duration_s=10.0)
     synth("blink", "none", d / "one_trial", robots=2, trials=1, seed=1, duration_s=10.0)
+    # Tracks of one sample each: nothing to summarise.
+    shutil.copytree(d / "data", d / "one_sample")
+    (d / "one_sample" / "observations.csv").write_text("trial,robot_id,t_s,x_m,y_m\n0,0,0.0,0,0\n1,0,0.0,0,0\n")
     # The same tracks labelled as a random walk: the gap workflow models straight runs only.
     shutil.copytree(d / "data", d / "walk_data")
     meta = yaml.safe_load((d / "walk_data" / "meta.yaml").read_text())
@@ -77,7 +80,8 @@ CASES = [
     (["gap", "walk_data", "--out", "gap_out"], "behavior"),
     (["gap", "data", "walk_data", "--out", "gap_out"], "random_walk"),
     (["gap", "data", "--seed", "-1", "--out", "gap_out"], "--seed"),
-    (["gap", "one_trial", "--out", "gap_out"], "trials"),  # was a traceback, and gap_out was left  # was a traceback, and gap_out was left
+    (["gap", "one_trial", "--out", "gap_out"], "trials"),  # was a traceback, and gap_out was left
+    (["gap", "one_sample", "--out", "gap_out"], "turn_rate"),  # likewise  # was a traceback, and gap_out was left
     (["synth", "--kind", "motion", "--seed", "-1", "--out", "new_data"], "--seed"),
     (["traits", "draw", "missing.yaml", "--out", "t.yaml"], "missing.yaml"),
     (["traits", "draw", POP, "--out", "emptydir"], "--out"),
