@@ -2009,8 +2009,6 @@ def run_gap(data: list[str], out: str | Path, model_path: str | None = None, gs:
     import yaml
 
     datasets = [_load_data(d) for d in data]  # every dataset checked before anything is written
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     sections, models, residuals = [], [], []
     for ds in datasets:
         base = _load_base(model_path, ds.kind, ds.robots) if model_path else None
@@ -2032,6 +2030,9 @@ def run_gap(data: list[str], out: str | Path, model_path: str | None = None, gs:
         for k in ALWAYS:
             entry.setdefault(k, 1.0 if k in ("speed_factor", "sensor_gain", "clock_rate") else 0.0)
     model_doc = {"format": "kilobot-twin/traits-v1", "robots": robots}
+    # The folder only now: data that analyse refuses (tracks too short to summarise) leave none.
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
     (out / "model.yaml").write_text(yaml.safe_dump(model_doc, sort_keys=True))
     named = [n for s in sections for n in s["named_effects"]]
     first, last = sections[0], sections[-1]

@@ -559,3 +559,16 @@ def test_a_clock_drift_with_robots_missing_from_trials_is_named(tmp_path):
     rep = run_gap([str(ds)], tmp_path / "out", gs=GapSettings(seed=3058), log=lambda *a: None)
     assert rep["named_effects"] == ["clock_drift"] and not rep["unexplained"]
     assert rep["gap_shrink"]["value"] >= 0.8 and rep["gap_shrink"]["ci95"][0] > 0
+
+
+def test_data_too_short_to_summarise_is_refused_before_any_folder_is_made(tmp_path):
+    """Tracks of one sample each give no turn rate: one line naming the summary, and no report
+    folder, also when the workflow is called from Python (the command line's own clean-up aside)."""
+    from kilobot_twin.errors import ConfigError
+
+    ds = tmp_path / "short"
+    synth("motion", "none", ds, robots=2, trials=2, seed=1, duration_s=10.0)
+    (ds / "observations.csv").write_text("trial,robot_id,t_s,x_m,y_m\n0,0,0.0,0,0\n1,0,0.0,0,0\n")
+    with pytest.raises(ConfigError, match="turn_rate"):
+        run_gap([str(ds)], tmp_path / "out", gs=GapSettings(seed=1), log=lambda *a: None)
+    assert not (tmp_path / "out").exists()
