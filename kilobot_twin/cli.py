@@ -50,15 +50,15 @@ def draw_traits(population: str, out: str, seed: int | None = None, robots: int 
     """Draw a swarm from a population file (``population: {...}``) and save it as robots. The seed
     is ``seed``, else the file's ``seed:``, else 0; a file whose own seed differs from ``seed`` is
     refused (the file's would win, and ``--seed`` would do nothing)."""
-    from .core.traits import load_swarm, load_yaml, save_swarm
+    from .core.traits import load_yaml, save_swarm, swarm_from_dict
 
     check_out_file(out)
-    doc = load_yaml(population)
+    doc = load_yaml(population)  # read once: its seed is checked, then it is drawn
     own = doc.get("seed") if isinstance(doc, dict) else None
     if seed is not None and own is not None and own != seed:
         raise ConfigError("--seed", f"{population} sets its own seed: {own!r}, which the draw takes over --seed {seed}",
                           "leave out --seed, or remove seed: from the file")
-    sw = load_swarm(population, seed=0 if seed is None else seed, n=robots)
+    sw = swarm_from_dict(doc, seed=0 if seed is None else seed, n=robots, source=str(population))
     save_swarm(sw, out)
     return Path(out)
 
