@@ -41,15 +41,17 @@ PER_DATASET = 48  # 12 robots x 4 trials
 TAUS = (0.0, 0.5, 1.0, 2.0)
 
 
-def tracks(tau: float, n: int, seed: int, tracking_m: float):
-    """n twin tracks (white heading noise at tau 0) with white tracking noise."""
-    sc = synth.motion_scenario(DURATION, DT)
-    sw = effects.nominal_model("motion", [0]).swarm.with_values(
-        sigma_omega=np.array([SIGMA]), heading_noise_tau=np.array([tau]), bias_trial_sd=np.zeros(1))
-    res = engine.simulate(sc, sw, seed, runs=np.arange(n), trials=np.zeros(n, int), record_every=1)
-    rng = np.random.default_rng(seed + 1)
-    x, y = res.traj["x"][:, 0], res.traj["y"][:, 0]
-    return x + tracking_m * rng.standard_normal(x.shape), y + tracking_m * rng.standard_normal(y.shape)
+def tracks(tau: float, n: int, seed: int, tracking_m: float, robots: int = 1, trials: int = 1, bias: float = 0.0,
+           noise_seed: int | None = None):
+    """Twin tracks (runs, robots, T): n runs of trial 0, 1, ..., trials - 1 in turn, heading noise
+    correlated over tau (white at 0), a trial-to-trial bias spread ``bias`` (in b), and white
+    tracking noise (its own stream, ``noise_seed``, default seed + 1)."""
+    sw = effects.nominal_model("motion", np.arange(robots)).swarm.with_values(
+        sigma_omega=np.full(robots, SIGMA), heading_noise_tau=np.full(robots, tau), bias_trial_sd=np.full(robots, bias))
+    res = engine.simulate(synth.motion_scenario(DURATION, DT), sw, seed, runs=np.arange(n),
+                          trials=np.tile(np.arange(trials), n // trials), record_every=1)
+    rng = np.random.default_rng(seed + 1 if noise_seed is None else noise_seed)
+    return tuple(res.traj[c] + tracking_m * rng.standard_normal(res.traj[c].shape) for c in ("x", "y"))
 
 
 def white_half_difference(samples: int) -> float:
@@ -81,13 +83,7 @@ def bias_spread(datasets: int) -> None:
     print(f"bias spread from the halves, {datasets} datasets of {n} x {k} per row (squared spread in rad^2/s^2)")
     print("tracking_mm  tau_s  spread_b  truth_rad_s  read: mean of b^2 (truth b^2)  sd per dataset  median spread")
     for j, (trk, tau, b) in enumerate((t, u, b) for t in (2.0, 6.0) for u in (0.0, 2.0) for b in (0.0, 0.002, 0.004)):
-        sw = effects.nominal_model("motion", np.arange(n)).swarm.with_values(
-            sigma_omega=np.full(n, SIGMA), heading_noise_tau=np.full(n, tau), bias_trial_sd=np.full(n, b))
-        runs = datasets * k
-        res = engine.simulate(synth.motion_scenario(DURATION, DT), sw, 500 + j, runs=np.arange(runs),
-                              trials=np.tile(np.arange(k), datasets), record_every=1)
-        rng = np.random.default_rng(600 + j)
-        x, y = (res.traj[c] + trk / 1e3 * rng.standard_normal(res.traj[c].shape) for c in ("x", "y"))
+        x, y = tracks(tau, datasets * k, 500 + j, trk / 1e3, robots=n, trials=k, bias=b, noise_seed=600 + j)
         h = x.shape[-1] // 2
         whole, first, second = (summaries.motion(x[..., a:z], y[..., a:z], DT)["turn_rate"].reshape(datasets, k, n)
                                 for a, z in ((0, None), (0, h), (h, 2 * h)))
@@ -116,7 +112,7 @@ def main() -> None:
     t0 = time.perf_counter()
     rows, white_wander = [], None
     for k, tau in enumerate(TAUS):
-        x, y = tracks(tau, n, 9400 + k, tracking_m)
+        x, y = (c[:, 0] for c in tracks(tau, n, 9400 + k, tracking_m))
         wander = summaries.motion(x, y, DT, wander_lags_s=lags)["diffusion"]
         a_ = summaries.motion(x[:, :h], y[:, :h], DT)["turn_rate"]
         b_ = summaries.motion(x[:, h:2 * h], y[:, h:2 * h], DT)["turn_rate"]
