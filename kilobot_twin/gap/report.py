@@ -147,6 +147,9 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
             lines += ["", "What this dataset can see: the smallest spread named with 80 % power (nothing named means "
                       "nothing larger), and the smallest the detection step alone flags with 80 % power:"]
             for eff, v in s["minimum_detectable"].items():
+                if "why_none" in v:  # no size for these data (workflow.none_stated)
+                    lines.append(f"- {eff}: none stated: {v['why_none']}")
+                    continue
                 if v.get("by") == "simulation":  # an effect of your own (workflow.simulated_detection)
                     detected = (f"none up to {v['searched_to']:.3g}" if v["detection_size"] is None
                                 else f"{'at most ' if v.get('at_most') else ''}{v['detection_size']:.3g}")

@@ -1158,6 +1158,9 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
                     log(f"[{kind}] what the data can see of {e.name}: simulating it at sizes up to {e.size_range[1]:g}")
                     mde[e.name] = simulated_detection(kind, cond, model, null, gs.alpha, e, child_seed(gs.seed, "power", 1 + j),
                                                       threads=gs.threads)
+                elif e.name not in mde:
+                    mde[e.name] = none_stated(e.size_unit or None, "the effect gives no at_size (with size_range and "
+                                              "size_unit), so the twin cannot be simulated with it at a size")
         flagged = [f for f in found if f["flagged"]]
         for f in flagged:
             disagreements.append({"round": round_, "signal": f["signal"], "robots": [int(cond.robot_ids[i]) for i in f["robots"]],
@@ -1396,6 +1399,12 @@ def summary_sensitivity(cond: Conditions, model: E.TwinModel, seed: int, M: int 
     return out
 
 
+def none_stated(unit: str | None, why: str) -> dict:
+    """A ``minimum_detectable`` entry for an effect these data give no size for, and why: every
+    effect a report can name is listed, so that its absence never reads as "nothing to see"."""
+    return {"size": None, "detection_size": None, "unit": unit, "why_none": why}
+
+
 def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: float, power: float = 0.8,
                        seed: int = 0, base: E.TwinModel | None = None, gain_level: float = GAIN_LEVEL,
                        sensitivity: dict | None = None, threads: int = 1) -> dict:
@@ -1450,6 +1459,7 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         drift = effect == "bias_drift"
         stat = f"{comp}:trial_trend" if drift else f"{comp}:between_robots"
         if stat not in stats:  # fewer than 3 trials: no trend statistic
+            out[effect] = none_stated(unit, f"a trend over trials needs 3 trials or more; these data have {trials}")
             continue
         s0 = sd0[stat]
         x = meas[comp]  # (K, N)
@@ -1503,6 +1513,10 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             nm = nm if nm.get("diffusion_per_var", 0.0) > 0 else {}  # a map that sees no heading noise
             lvl = nm["diffusion_per_var"] * float(np.mean(base.swarm.sigma_omega**2)) if nm else level
             if not lvl > 0:  # no heading noise to differ in
+                out[effect] = none_stated(_NOISE_UNIT, (
+                    "the base model fits no heading noise to these tracks (sigma_omega 0: they wander no more than the "
+                    "tracker's noise makes them), and robots that differ in noise differ by factors of it"
+                    if nm else "the tracks' mean diffusion is not above 0: no heading noise to differ in"))
                 continue
             noise = (lvl, float(np.clip(1.0 - nm.get("diffusion_within_var0", 0.0) / max(s_w2, 1e-300), 0.0, 1.0)))
             # the detection size in those units: the summary's sd over robots is lvl sqrt(exp(4 tau^2) - 1)

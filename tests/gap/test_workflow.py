@@ -240,6 +240,35 @@ def test_a_users_own_effect_is_scored_and_named_without_touching_the_workflow(tm
     truth, rep = run(tmp_path, "motion", "heading_bias", gs=replace(FAST, library=lib))
     assert rep["named_effects"] == ["my_turn"]
     assert "heading_bias" not in rep["steps"][0]["scores"]
+    # It gives no at_size: the report lists it, with why it states no size for it.
+    mine = rep["datasets"][0]["minimum_detectable"]["my_turn"]
+    assert mine["size"] is None and "no at_size" in mine["why_none"]
+    assert "- my_turn: none stated: the effect gives no at_size" in (tmp_path / "out" / "report.md").read_text()
+
+
+def test_a_report_lists_every_effect_and_why_it_states_no_size_for_some(tmp_path):
+    """What a report cannot see includes what it gives no size for: 6 robots x 2 trials with no
+    heading noise (a nuisance that is zero in the data). A trend over trials needs 3 of them, and
+    robots that differ in noise differ by factors of an intensity the base fits at 0: every
+    motion effect of the library is listed, those two with the reason, in the JSON and in
+    report.md (before, they were left out, and "nothing named" read as nothing to see)."""
+    from kilobot_twin.gap import effects as E
+
+    ds = tmp_path / "ds"
+    synth("motion", "none", ds, robots=6, trials=2, seed=3, nuisance={"sigma_omega": 0.0})
+    rep = run_gap([str(ds)], tmp_path / "out", gs=FAST, log=lambda *a: None)
+    sec = rep["datasets"][0]
+    mde = sec["minimum_detectable"]
+    assert set(mde) == {n for n, e in E.LIBRARY.items() if e.kind == "motion"}
+    assert mde["bias_drift"]["size"] is None and mde["bias_drift"]["detection_size"] is None
+    assert mde["bias_drift"]["why_none"] == "a trend over trials needs 3 trials or more; these data have 2"
+    assert sec["nuisances"]["sigma_omega_rad_sqrt_s"] == 0.0
+    assert mde["motion_noise"]["size"] is None and "fits no heading noise" in mde["motion_noise"]["why_none"]
+    sized = [n for n, v in mde.items() if "why_none" not in v]
+    assert sized == ["heading_bias", "speed_heterogeneity"] and all(mde[n]["detection_size"] > 0 for n in sized)
+    md = (tmp_path / "out" / "report.md").read_text()
+    for n in ("bias_drift", "motion_noise"):
+        assert f"- {n}: none stated: {mde[n]['why_none']}" in md
 
 
 @pytest.mark.parametrize("hidden, named", [("", []), ("sensor_gain", ["sensor_gain"])])
