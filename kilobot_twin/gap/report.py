@@ -147,8 +147,10 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
             lines += ["", "What this dataset can see: the smallest spread named with 80 % power (nothing named means "
                       "nothing larger), and the smallest the detection step alone flags with 80 % power:"]
             for eff, v in s["minimum_detectable"].items():
-                if "why_none" in v:  # no size for these data (workflow.none_stated)
-                    lines.append(f"- {eff}: none stated: {v['why_none']}")
+                if "why_none" in v:  # no size named for these data (workflow.none_stated), and why
+                    det = v.get("detection_size")
+                    lines.append(f"- {eff}: none stated: {v['why_none']}"
+                                 + (f"; detected {det:.3g} ({v['unit']})" if det is not None else ""))
                     continue
                 if v.get("by") == "simulation":  # an effect of your own (workflow.simulated_detection)
                     detected = (f"none up to {v['searched_to']:.3g}" if v["detection_size"] is None

@@ -1529,10 +1529,21 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         # estimates cost held-out likelihood where robots do not differ in them.
         companions = [np.isfinite(meas[c]) for c in E.LIBRARY[effect].predicts if c != comp and c in meas]
         taus = _spreads(tau_det, 0.7, 20, noise is not None)
-        pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0 + shift, seed=seed, noise=noise,
-                          gain_level=gain_level, dof=dof, rival_threshold=rival, companions=companions,
-                          threads=threads, stop_at=power)
-        tau = _first_crossing(taus, pw, power)
+        if trials >= 3:
+            pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0 + shift, seed=seed, noise=noise,
+                              gain_level=gain_level, dof=dof, rival_threshold=rival, companions=companions,
+                              threads=threads, stop_at=power)
+            tau = _first_crossing(taus, pw, power)
+        else:
+            # 2 trials: each is held out against the other alone, on which a fold fits each
+            # robot's level with nothing left to tell it from that trial's own noise. The
+            # emulation's folds read the within-robot variance of the trials they keep, which is
+            # 0 for one (every robot predicted exactly), and it stated "none" where the workflow
+            # named a heading bias in 3 of 3 datasets of 6 robots x 2 trials. Taking each
+            # replicate's own variance there instead, its sizes were named in 8 of 11 (heading
+            # bias) and 1 of 5 (speed) 2-trial datasets of the independent world at the size
+            # stated. So the size named is not stated; the detection size (the F test's) is.
+            pw, tau = np.full(len(taus), np.nan), np.inf
         # The detection size on the same emulated datasets, from well below the closed form's
         # (which overstates it, see detection_power); never above the size named (naming needs
         # the flag: only the interpolation between spreads could put it above).
@@ -1553,6 +1564,9 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             # floor alike), so "none up to" can hide a spread named in 70 % of datasets.
             j = int(np.nanargmax(pw))
             out[effect] |= {"best_power": float(pw[j]), "best_at": float(taus[j]) * scale}
+        if trials < 3:
+            out[effect]["why_none"] = (f"with {trials} trials each is held out against one other, which cannot tell "
+                                       "a robot's own level from that trial's noise; record 3 trials or more")
         if effect == "heading_bias" and named is not None:  # also in the twin's units, b = -omega L / v
             v = float(np.nanmean(null["speed"]))
             out[effect]["heading_bias_sd"] = float(abs(heading_bias_from_turn_rate(named, v)))
