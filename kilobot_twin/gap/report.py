@@ -92,6 +92,31 @@ def _where(s: dict) -> list:
     return lines + [""]
 
 
+def _can_see(mde: dict) -> list:
+    """report.md's lines for ``minimum_detectable``: each effect's size named and detected, or
+    why none is stated."""
+    lines = []
+    for eff, v in mde.items():
+        if "why_none" in v:  # no size named for these data (workflow.none_stated), and why
+            det = v.get("detection_size")
+            lines.append(f"- {eff}: none stated: {v['why_none']}"
+                         + (f"; detected {det:.3g} ({v['unit']})" if det is not None else ""))
+            continue
+        if v.get("by") == "simulation":  # an effect of your own (workflow.simulated_detection)
+            detected = (f"none up to {v['searched_to']:.3g}" if v["detection_size"] is None
+                        else f"{'at most ' if v.get('at_most') else ''}{v['detection_size']:.3g}")
+            lines.append(f"- {eff} (yours): detected {detected} ({v['unit']}), by simulating the twin with it "
+                         f"({v['replicates']} datasets per size); named needs at least that (not simulated)")
+            continue
+        named, detected = (f"none up to {v['searched_to']:.3g}" if x is None else f"{x:.3g}"
+                           for x in (v["size"], v["detection_size"]))
+        if "best_power" in v:  # how near the search came (none at all: no size to point to)
+            named += (f" (at most {100 * v['best_power']:.0f} % power, at {v['best_at']:.3g})" if v["best_power"] > 0
+                      else " (named at none of the sizes searched)")
+        lines.append(f"- {eff}: named {named}, detected {detected} ({v['unit']})")
+    return lines
+
+
 def write_markdown(out: Path, report: dict, residuals: list) -> Path:
     """report.md and one figure per dataset; ``residuals[j]``: per-robot held-out residuals of the
     base and the final model of dataset j (``before``, ``after``)."""
@@ -146,23 +171,7 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
         if s.get("minimum_detectable"):
             lines += ["", "What this dataset can see: the smallest spread named with 80 % power (nothing named means "
                       "nothing larger), and the smallest the detection step alone flags with 80 % power:"]
-            for eff, v in s["minimum_detectable"].items():
-                if "why_none" in v:  # no size named for these data (workflow.none_stated), and why
-                    det = v.get("detection_size")
-                    lines.append(f"- {eff}: none stated: {v['why_none']}"
-                                 + (f"; detected {det:.3g} ({v['unit']})" if det is not None else ""))
-                    continue
-                if v.get("by") == "simulation":  # an effect of your own (workflow.simulated_detection)
-                    detected = (f"none up to {v['searched_to']:.3g}" if v["detection_size"] is None
-                                else f"{'at most ' if v.get('at_most') else ''}{v['detection_size']:.3g}")
-                    lines.append(f"- {eff} (yours): detected {detected} ({v['unit']}), by simulating the twin with it "
-                                 f"({v['replicates']} datasets per size); named needs at least that (not simulated)")
-                    continue
-                named, detected = (f"none up to {v['searched_to']:.3g}" if x is None else f"{x:.3g}"
-                                   for x in (v["size"], v["detection_size"]))
-                if "best_power" in v:
-                    named += f" (at most {100 * v['best_power']:.0f} % power, at {v['best_at']:.3g})"
-                lines.append(f"- {eff}: named {named}, detected {detected} ({v['unit']})")
+            lines += _can_see(s["minimum_detectable"])
         tp = s.get("tracked_point")
         if tp:
             lines += ["", _tracked_point_text(tp)]

@@ -567,6 +567,32 @@ def test_the_report_says_where_an_unflagged_gap_is():
         assert "No test flagged" not in "\n".join(_where({**s, **change}))
 
 
+def test_the_report_states_what_each_effect_s_size_is_or_why_there_is_none():
+    """report.md's "what this dataset can see" lines, for entries written here: a size named and
+    detected; none named within the search, with how near it came, or, where no size was named
+    in any emulated dataset, without a size to point to (it said "at most 0 % power, at" the
+    smallest size tried); none stated and why, with the detection size where there is one; an
+    effect of your own, sized by simulation."""
+    from kilobot_twin.gap.report import _can_see
+
+    u = "sd of x, rad/s"
+    mde = {"a": {"size": 0.0123, "detection_size": 0.0101, "searched_to": 0.2, "unit": u},
+           "b": {"size": None, "detection_size": 0.02, "searched_to": 0.31, "unit": u, "best_power": 0.655, "best_at": 0.25},
+           "c": {"size": None, "detection_size": 0.004, "searched_to": 0.05, "unit": u, "best_power": 0.0, "best_at": 0.0005},
+           "d": {"size": None, "detection_size": None, "unit": u, "why_none": "a trend needs 3 trials"},
+           "e": {"size": None, "detection_size": 0.0031, "searched_to": 0.1, "unit": u, "why_none": "2 trials"},
+           "f": {"by": "simulation", "size": None, "detection_size": 0.0103, "at_most": False, "searched_to": 0.5,
+                 "unit": "floor slope", "replicates": 100}}
+    assert _can_see(mde) == [
+        "- a: named 0.0123, detected 0.0101 (sd of x, rad/s)",
+        "- b: named none up to 0.31 (at most 66 % power, at 0.25), detected 0.02 (sd of x, rad/s)",
+        "- c: named none up to 0.05 (named at none of the sizes searched), detected 0.004 (sd of x, rad/s)",
+        "- d: none stated: a trend needs 3 trials",
+        "- e: none stated: 2 trials; detected 0.0031 (sd of x, rad/s)",
+        "- f (yours): detected 0.0103 (floor slope), by simulating the twin with it (100 datasets per size); "
+        "named needs at least that (not simulated)"]
+
+
 def _heading_f_by_lstsq(v, h):
     """log F of speed on heading within robots, by full and reduced least-squares fits: a dummy
     per robot, plus cos and sin of the heading."""

@@ -69,7 +69,8 @@ def test_heading_bias_named_recovered_and_gap_shrinks(tmp_path):
         named, detected = ("none up to %.3g" % v["searched_to"] if x is None else "%.3g" % x for x in (v["size"], v["detection_size"]))
         if v["size"] is None:  # and how near the search came
             assert v["best_power"] < 0.8 and 0 < v["best_at"] <= v["searched_to"]
-            named += " (at most %.0f %% power, at %.3g)" % (100 * v["best_power"], v["best_at"])
+            named += (" (at most %.0f %% power, at %.3g)" % (100 * v["best_power"], v["best_at"]) if v["best_power"] > 0
+                      else " (named at none of the sizes searched)")
         assert f"- {eff}: named {named}, detected {detected} (" in md
     assert (tmp_path / "out" / "report.md").is_file() and (tmp_path / "out" / "gap_0.png").is_file()
     # Where the gap is: the turn rates' per-track part, and the report's table row says so.
