@@ -88,6 +88,25 @@ def test_traits_draw_takes_the_seed_given_else_the_file_s_else_0(tmp_path):
     assert not (tmp_path / "g.yaml").exists()
 
 
+def test_a_population_with_its_own_seed_is_the_same_swarm_whatever_the_run_s_seed(tmp_path):
+    """A run configuration's ``seed`` draws a population that has none (other robots for another
+    seed); a population with its own ``seed:``, in ``swarm:`` or in a ``--traits`` file, is that
+    seed's swarm whatever the run's seed (README, "A run configuration")."""
+    from kilobot_twin.config import config_from_dict
+
+    pop = {"n": 5, "heading_bias": {"dist": "normal", "mean": 0, "sd": 0.01}}
+    traits = tmp_path / "pop.yaml"
+    traits.write_text(yaml.safe_dump({"seed": 7, "population": pop}))
+
+    def bias(doc, seed, **kw):
+        return config_from_dict(doc, seed=seed, **kw).swarm.heading_bias.tolist()
+
+    assert bias({"swarm": {"population": pop}}, 1) != bias({"swarm": {"population": pop}}, 2)
+    pinned = bias({"swarm": {"seed": 7, "population": pop}}, 1)
+    assert pinned == bias({"swarm": {"seed": 7, "population": pop}}, 2) == bias({"swarm": {"population": pop}}, 7)
+    assert bias({}, 1, traits_path=str(traits)) == bias({}, 2, traits_path=str(traits)) == pinned
+
+
 BAD = [
     ("robots:\n  0: {heading_bias: 2.5}\n", "robots.0.heading_bias"),
     ("robots:\n  0: {clock_rate: -1}\n", "robots.0.clock_rate"),
