@@ -141,12 +141,16 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
                   + _removed(s["gap_shrink"]),
                   f"- metric: {s['gap_before']['metric']}; computed on held-out trials (leave-one-trial-out)", ""]
         lines += _where(s)
-        lines += ["| round | signal | robots | trials | z | p |", "|---|---|---|---|---|---|"]
+        if s["disagreements"]:
+            lines += ["| round | signal | robots | trials | z | p |", "|---|---|---|---|---|---|"]
+        else:  # (a table of headers alone said as much, less plainly)
+            lines.append(f"No test flagged a disagreement ({', '.join(s.get('tests') or []) or 'none run'}).")
         for d in s["disagreements"]:
             lines.append(f"| {d['round']} | {d['signal']} | {d['robots'][:8]} | {d['trials']} | {d['z']:.1f} | {d['p_value']:.2g} |")
-        level = s["steps"][0]["score_vs_current"]["level"] if s["steps"] else 0.9
-        lines += ["", f"| step | named | log-lik gain vs current (one-sided {100 * level:.0f} % bounds) | runner-up "
-                  "| gain over it (95 % CI) | gap after |", "|---|---|---|---|---|---|"]
+        if s["steps"]:
+            level = s["steps"][0]["score_vs_current"]["level"]
+            lines += ["", f"| step | named | log-lik gain vs current (one-sided {100 * level:.0f} % bounds) | runner-up "
+                      "| gain over it (95 % CI) | gap after |", "|---|---|---|---|---|---|"]
         for i, st in enumerate(s["steps"]):
             sc, ru = st["score_vs_current"], st["runner_up"]
             over = ("-" if ru["name"] is None else

@@ -85,6 +85,12 @@ def test_heading_bias_named_recovered_and_gap_shrinks(tmp_path):
 def test_no_hidden_effect_names_nothing(tmp_path):
     _, rep = run(tmp_path, "motion", "")
     assert rep["named_effects"] == [] and not rep["unexplained"]
+    # report.md says that no test flagged anything, and which ran, rather than showing empty tables
+    md = (tmp_path / "out" / "report.md").read_text()
+    sec = rep["datasets"][0]
+    assert sec["disagreements"] == [] and sec["steps"] == [] and "turn_rate:between_robots" in sec["tests"]
+    assert f"No test flagged a disagreement ({', '.join(sec['tests'])})." in md
+    assert "| round | signal |" not in md and "| step | named |" not in md
 
 
 def test_pair_is_named_in_full(tmp_path):
