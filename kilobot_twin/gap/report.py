@@ -20,7 +20,7 @@ def _fmt(v) -> str:
 
 def _white_noise_text(lags) -> str:
     """What the fitted heading-noise intensity is: white noise that wanders as much as the tracks
-    between the summary's two lags (README, "Twin vs measurement": coloured turn noise)."""
+    between the summary's two lags (docs/gap_methods.md: coloured turn noise)."""
     return (f"sigma_omega is the white heading noise that makes the tracks wander as much as measured between "
             f"{lags[0]:.2g} and {lags[1]:.2g} s. Turn noise correlated over a second or two wanders less over such "
             f"lags: its long-run intensity is then higher (by 2-16 % at a correlation of 1-2 s, more under lighter "

@@ -1989,7 +1989,7 @@ def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
                 "speed_trial_sd": float(base.speed_trial_sd), "bias_trial_sd": float(sw.bias_trial_sd.mean()),
                 "tracking_noise_m": float(cond.tracking_noise_m),
                 # the lags of the wander that sigma_omega is read from (white noise that wanders as
-                # much; a correlated turn noise's long-run intensity is higher: README)
+                # much; a correlated turn noise's long-run intensity is higher: docs/gap_methods.md)
                 "wander_lags_s": [float(v) for v in summaries.wander_lags(total_tracking_noise(cond))],
                 **({"tracking_correlated_m": float(cond.tracking_correlated_m), "tracking_tau_s": float(cond.tracking_tau_s)}
                    if cond.tracking_correlated_m > 0 else {}),

@@ -55,7 +55,7 @@ def test_heading_bias_named_recovered_and_gap_shrinks(tmp_path):
     assert doc["datasets"][0]["estimates"]["heading_bias"]["expected_r"] >= 0.95
     assert "heading_bias: expected r" in (tmp_path / "out" / "report.md").read_text()
     # What sigma_omega is: white noise that wanders as much between the wander's lags, which the
-    # report gives (README: 1 s and 10 s x sqrt(e / 2 mm) within 4..20 s, e the whole tracking error).
+    # report gives (docs/gap_methods.md: 1 s and 10 s x sqrt(e / 2 mm) within 4..20 s, e the whole tracking error).
     nz = doc["datasets"][0]["nuisances"]
     e = np.hypot(nz["tracking_noise_m"], nz.get("tracking_correlated_m", 0.0))
     assert nz["wander_lags_s"] == pytest.approx([1.0, float(np.clip(10 * np.sqrt(e / 0.002), 4, 20))])
