@@ -346,9 +346,12 @@ def _mde_size(row, effect) -> float:
 def _mde(rows):
     print("\nminimum detectable effect stated by the reports (named with 80 % power; in brackets detected with 80 % "
           "power), against the earlier issue's sizes:")
-    mdes, nulls = defaultdict(list), defaultdict(list)
+    mdes, nulls, unsized = defaultdict(list), defaultdict(list), defaultdict(list)
     for r in rows:
         for k, v in r["mde"].items():
+            if "why_none" in v:  # no size stated for these data, and why (workflow.none_stated)
+                unsized[k].append(v["why_none"])
+                continue
             det = v.get("detection_size", np.nan)  # None: not flagged with 80 % power within the search
             mdes[(k, v["unit"])].append((_mde_size(r, k), np.inf if det is None else det))
             if not r["hidden"]:
@@ -365,6 +368,9 @@ def _mde(rows):
             n = np.array(nulls[k])
             print(f"  {'':22s} on null data (nuisances only): median {np.median(n):.3g}, below {ref:g} in "
                   f"{np.mean(n < ref):.0%} of {len(n)}")
+    for k, why in unsized.items():
+        common = max(set(why), key=why.count)
+        print(f"  {k:22s} none stated in {len(why)} reports (most often: {common[:90]})")
 
 
 def _recovery(rows):
