@@ -1108,14 +1108,11 @@ def _same_data(library: dict, a: str, b: str) -> bool:
 
 # --- the loop -------------------------------------------------------------------------------------
 
-#: The summary each kind's fit cannot do without (a robot needs it in two trials, for a spread).
-_NEEDED = {"motion": "turn_rate", "light_sweep": "gain", "blink": "toggle_rate"}
-
-
 def _enough_to_summarise(ds: measured.Dataset, meas: dict) -> None:
-    """A one-line error unless some robot's tracks can be summarised in two trials (tracks of a
-    sample or two each left every summary NaN, and the noise fit stopped on a NumPy traceback)."""
-    key = _NEEDED[ds.kind]
+    """A one-line error unless some robot's tracks give the kind's first summary (turn rate, gain,
+    toggle rate: the one every fit needs) in two trials (tracks of a sample or two each left every
+    summary NaN, and the noise fit stopped on a NumPy traceback)."""
+    key = COMPONENTS[ds.kind][0]
     if np.isfinite(meas[key]).sum(axis=0).max(initial=0) < 2:
         raise ConfigError(str(ds.path), f"no robot has two trials whose tracks give a {key} (each {ds.kind} summary "
                           "needs a track of some seconds)", "record longer tracks, or check the t_s column")

@@ -81,7 +81,7 @@ CASES = [
     (["gap", "data", "walk_data", "--out", "gap_out"], "random_walk"),
     (["gap", "data", "--seed", "-1", "--out", "gap_out"], "--seed"),
     (["gap", "one_trial", "--out", "gap_out"], "trials"),  # was a traceback, and gap_out was left
-    (["gap", "one_sample", "--out", "gap_out"], "turn_rate"),  # likewise  # was a traceback, and gap_out was left
+    (["gap", "one_sample", "--out", "gap_out"], "turn_rate"),  # likewise
     (["synth", "--kind", "motion", "--seed", "-1", "--out", "new_data"], "--seed"),
     (["traits", "draw", "missing.yaml", "--out", "t.yaml"], "missing.yaml"),
     (["traits", "draw", POP, "--out", "emptydir"], "--out"),
