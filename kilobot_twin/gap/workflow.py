@@ -1526,7 +1526,10 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
         # estimates cost held-out likelihood where robots do not differ in them.
         companions = [np.isfinite(meas[c]) for c in E.LIBRARY[effect].predicts if c != comp and c in meas]
         taus = _spreads(tau_det, 0.7, 20, noise is not None)
-        if trials >= 3:
+        # 2 trials: the size named is not emulated (below), only the detection size.
+        two = (f"with {trials} trials each is held out against one other, which cannot tell a robot's own level "
+               "from that trial's noise; record 3 trials or more") if trials < 3 else None
+        if two is None:
             pw = naming_power(seen, s_w2, taus, drift, effect in _BASE_ABSORBS, z_det * s0 + shift, seed=seed, noise=noise,
                               gain_level=gain_level, dof=dof, rival_threshold=rival, companions=companions,
                               threads=threads, stop_at=power)
@@ -1561,9 +1564,8 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             # floor alike), so "none up to" can hide a spread named in 70 % of datasets.
             j = int(np.nanargmax(pw))
             out[effect] |= {"best_power": float(pw[j]), "best_at": float(taus[j]) * scale}
-        if trials < 3:
-            out[effect]["why_none"] = (f"with {trials} trials each is held out against one other, which cannot tell "
-                                       "a robot's own level from that trial's noise; record 3 trials or more")
+        if two:
+            out[effect]["why_none"] = two
         if effect == "heading_bias" and named is not None:  # also in the twin's units, b = -omega L / v
             v = float(np.nanmean(null["speed"]))
             out[effect]["heading_bias_sd"] = float(abs(heading_bias_from_turn_rate(named, v)))
