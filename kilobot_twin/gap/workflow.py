@@ -102,29 +102,28 @@ def _rel_floor(x):
         return (_REL_RESOLUTION * np.nanmean(np.abs(x), axis=(-2, -1))) ** 2
 
 
-def _predictive_floor(kind: str, x, data_var: float, simulated_var: float = 0.0) -> float:
+def _predictive_floor(kind: str, x, data, simulated_var: float = 0.0) -> float:
     """The least variance a robot's summary is predicted with on held-out trials (:func:`_heldout`)
-    and emulated with (:func:`minimum_detectable`), for replicates ``x`` (..., K, N): a part in
-    10^4 of the level squared (:func:`_rel_floor`), so that a deterministic prediction cannot turn
-    a tiny mismatch into an infinite log-likelihood. A light sweep's summaries are floored lower:
-    at the replicates' own variance ``simulated_var`` where they vary at all, else at the data's
-    within-robot variance ``data_var`` where that is above 0. A sensor that reads without noise
-    varies from sweep to sweep by how its trial's offset meets the ADC's rounding, which the twin
-    reproduces at the data's stimuli (:func:`model.sweep_readings`), and that can be half a part in
-    10^4 of the gain: another world's noiseless sensor (independent world 22, 21 robots x 5 trials)
-    varied by an sd of 0.102 counts per unit within a robot, the floor's was 0.156, and its held-out null
-    gains read a mean z^2 of 0.40, as did every candidate's, which divided what a right sensor gain
-    gains by 2.5 (tests/gap/test_indep_world.py). The data's own variance is not the floor where
-    the replicates vary: it holds each track's share of the rounding that the twin, reading at that
-    track's stimuli, predicts in its mean (there 0.102 against the 0.081 the world's tracks vary by
-    over its offsets' draws), and floored there the same null read 0.63."""
+    and emulated with (:func:`minimum_detectable`): a part in 10^4 of the level squared of ``x``
+    (..., K, N; :func:`_rel_floor`), so that a deterministic prediction cannot turn a tiny
+    mismatch into an infinite log-likelihood. A light sweep's summaries are floored lower: at the
+    replicates' own variance ``simulated_var`` where they vary at all, else at the within-robot
+    variance of the data's summaries ``data`` (K, N) where that is above 0. A sensor that reads
+    without noise varies from sweep to sweep by how its trial's offset meets the ADC's rounding,
+    which the twin reproduces at the data's stimuli (:func:`model.sweep_readings`), and that can
+    be half a part in 10^4 of the gain: another world's noiseless sensor (independent world 22,
+    21 robots x 5 trials) varied by an sd of 0.102 counts per unit within a robot, the floor's
+    was 0.156, and its held-out null gains read a mean z^2 of 0.40, as did every candidate's,
+    which divided what a right sensor gain gains by 2.5 (tests/gap/test_indep_world.py). The
+    data's own variance is not the floor where the replicates vary: it holds each track's share
+    of the rounding that the twin, reading at that track's stimuli, predicts in its mean (there
+    0.102 against the 0.081 the world's tracks vary by over its offsets' draws), and floored
+    there the same null read 0.63."""
     floor = float(_rel_floor(x))
     if kind != "light_sweep":
         return floor
-    for v in (simulated_var, data_var):
-        if v > 0.0:
-            return min(float(v), floor)
-    return floor
+    v = simulated_var if simulated_var > 0.0 else float(E.within_var(np.asarray(data, dtype=float)))
+    return min(float(v), floor) if v > 0.0 else floor
 
 
 def _robot_weights(v):
@@ -544,7 +543,7 @@ def _heldout(fitter: _Fitter, names: tuple, kind: str) -> dict:
             scales = any(c in fitter.gs.library[n].scales_spread for n in names)
             b, centre = level_spread(x) if scales else (0.0, None)
             var_i, pooled = _replicate_spread(x, centre)
-            floor = _predictive_floor(kind, x, float(E.within_var(np.asarray(fitter.meas[c])[train])), pooled)
+            floor = _predictive_floor(kind, x, np.asarray(fitter.meas[c])[train], pooled)
             rounding = fitter.meas.get(c + "_floor") if kind == "blink" and model.frame_lead == "random" else None
             if rounding is not None:
                 # Clocks anywhere in their cycle: no robot's rate is predicted closer than the
@@ -1521,7 +1520,7 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
                     floored = _resolution(null, comp)
                     shift = float(_f_between(x) - _f_between(x, floor)
                                   - np.nanmean(_f_between(null[comp]) - _f_between(null[comp], floored)))
-            least = _predictive_floor(kind, x, s_w2)  # as the held-out trials are predicted
+            least = _predictive_floor(kind, x, x)  # as the held-out trials are predicted
             if s_w2 < least:
                 s_w2, dof = least, None
             tau_det = float(np.sqrt(s_w2 * np.expm1(z * s0 + shift) / max(k_eff, 1.0)))
