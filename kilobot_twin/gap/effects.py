@@ -771,7 +771,7 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
     A = np.column_stack([(sim_stats(pn, 0.0) - r0) / (pn**2 - ADC_ROUNDING_VAR), (sim_stats(floor, po) - r0) / po**2])
     w = 1.0 / np.maximum(np.abs(A).max(axis=1), 1e-30)  # rows scaled so they weigh alike
     data = stats(meas)
-    (excess, spread), miss = nnls(A * w[:, None], (data - r0) * w)
+    (excess, spread), _ = nnls(A * w[:, None], (data - r0) * w)
     # Without noise where the data ask for none above the floor, or where ``like`` has none.
     noiseless = excess == 0.0 if like is None else not np.any(like.swarm.sensor_noise > 0)
     if noiseless:
@@ -781,13 +781,37 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
         # as much as such data's from sweep to sweep (synth 3063, 3067). Without noise at all
         # the model rounds as the data do, if its offsets shift enough to draw the rounding anew
         # in every trial (else its replicates would be alike and its spreads 0).
+        #   Which kind the data are is judged by simulating each at its fitted levels, not by the
+        # linear maps' misses: a noiseless sensor's gains vary by its rounding, which is drawn
+        # anew in full once the offset shifts by half a count (ROUNDING_DRAWN_ANEW) and grows no
+        # further, so the map's column, taken at a probe of 8 counts, puts the gains' variance at
+        # a fraction of what the sensor rounds to, and its miss took the dither for such data
+        # about as often as not. Independent world 6712 and 6721 with robots' gains differing by
+        # 2e-4: the data's gains varied 0.028 and 0.017 counts^2 per unit^2 from sweep to sweep,
+        # the dither's 0.071 and 0.025, a noiseless model's 0.032 and 0.014; the dither was
+        # taken, the null's robots spread by it and the gains were not flagged; without the
+        # effect, on the same noise, the fits had come out without noise.
         z0 = sim_stats(0.0, 0.0)
         col = (sim_stats(0.0, po) - z0) / po**2
-        (spread0,), miss0 = nnls((col * w)[:, None], (data - z0) * w)
-        if (like is not None or miss0 < miss) and np.sqrt(spread0) >= ROUNDING_DRAWN_ANEW:
-            return m.with_traits(sensor_noise=np.zeros(n), sensor_offset_trial_sd=np.full(n, np.sqrt(spread0)))
+        (spread0,), _ = nnls((col * w)[:, None], (data - z0) * w)
+        if np.sqrt(spread0) >= ROUNDING_DRAWN_ANEW:
+            quiet = m.with_traits(sensor_noise=np.zeros(n), sensor_offset_trial_sd=np.full(n, np.sqrt(spread0)))
+            if like is not None:
+                return quiet
+            dithered = m.with_traits(sensor_noise=np.full(n, np.sqrt(ADC_ROUNDING_VAR + excess)),
+                                     sensor_offset_trial_sd=np.full(n, np.sqrt(spread)))
+            return quiet if _log_misfit(stats(resim(quiet)), data) <= _log_misfit(stats(resim(dithered)), data) else dithered
     return m.with_traits(sensor_noise=np.full(n, np.sqrt(ADC_ROUNDING_VAR + excess)),
                          sensor_offset_trial_sd=np.full(n, np.sqrt(spread)))
+
+
+def _log_misfit(sim, data) -> float:
+    """How far simulated variances ``sim`` lie from the data's ``data`` (both (k,)): the sum of
+    their squared log ratios, the scale on which a variance's sampling error is alike at any level."""
+    tiny = np.finfo(float).tiny
+    with np.errstate(all="ignore"):
+        r = np.log(np.maximum(np.asarray(sim, dtype=float), tiny) / np.maximum(np.asarray(data, dtype=float), tiny))
+    return float(np.sum(r**2))
 
 
 def _sensor_noises(m: TwinModel, noise: TwinModel) -> TwinModel:

@@ -183,24 +183,27 @@ def test_the_base_reads_the_sensors_two_noises_of_another_world(tmp_path, seed, 
     assert W._nuisances(base, cond)["reading_noise_counts"] == pytest.approx(reading_sd, rel=1e-12)
 
 
-def test_the_base_rounds_as_another_worlds_noiseless_sensor(tmp_path):
+@pytest.mark.parametrize("seed, spread", [(13, 6.0), (49, 1.4)])
+def test_the_base_rounds_as_another_worlds_noiseless_sensor(tmp_path, seed, spread):
     """A sensor without reading noise (the independent world: its own soft clip, p = 9, offsets
-    that shift by 6 counts from trial to trial, rounding): the base reads its bend (within a
-    grid step of 9), fits no reading noise, and its gains vary from sweep to sweep as the data's
+    that shift by 6 or 1.4 counts from trial to trial, rounding): the base reads its bend (within
+    a grid step of 9), fits no reading noise, and its gains vary from sweep to sweep as the data's
     do: the log of the ratio of within-robot variances within 4 standard errors (the data's
     variance from ``dof`` deviations, relative se sqrt(2 / dof); the model's from its
     replicates, sqrt(2 / (M dof))). The rounding floor's dither (sqrt(1/12) counts a sample)
     or the twin's own knee (p = 6) made the model's 4.5-5x the data's on seed 3060 of the
-    evaluation."""
+    evaluation. Seed 49 (10 robots x 7 trials) took the dither where the kinds of sensor were
+    judged by the linear maps' misses (``effects.fit_sensor_noise``): its gains then varied 2.1x
+    the data's; judged by simulating each kind, 0.94x."""
     from kilobot_twin.gap import effects as E
     from kilobot_twin.gap import workflow as W
     from kilobot_twin.gap.model import simulate
 
-    iw.generate("light_sweep", "none", tmp_path / "d", seed=13, nuisance={"sensor_noise": 0.0, "sensor_offset_trial_sd": 6.0})
+    iw.generate("light_sweep", "none", tmp_path / "d", seed=seed, nuisance={"sensor_noise": 0.0, "sensor_offset_trial_sd": spread})
     cond, meas = measured_summaries(measured.load(tmp_path / "d"))
     assert abs(np.log(cond.sensor_knee / 9.0)) <= np.log(2.0) / 6, cond.sensor_knee
     meas = E.Summaries(meas, np.arange(cond.trials))
-    gs = W.GapSettings(seed=13)
+    gs = W.GapSettings(seed=seed)
     base = W._Fitter(cond, meas, E.nominal_model("light_sweep", cond.robot_ids), gs, True).fit((), np.arange(cond.trials))
     assert np.all(base.swarm.sensor_noise == 0.0)
     gains = np.asarray(meas["gain"])
