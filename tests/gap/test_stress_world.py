@@ -52,7 +52,7 @@ def test_a_second_realisation_is_the_same_world_with_fresh_noise(tmp_path):
     """``realisation``: the same robots, shape, nuisances and camera, other noise (what
     ``eval_gap.py --at-mde --fresh-noise`` sets an effect in); 0 is the seed's own dataset."""
     a = sw.generate("motion", "heading_bias", tmp_path / "a", seed=5, program="random")
-    a0 = sw.generate("motion", "heading_bias", tmp_path / "a0", seed=5, program="random", realisation=0)
+    sw.generate("motion", "heading_bias", tmp_path / "a0", seed=5, program="random", realisation=0)
     b = sw.generate("motion", "heading_bias", tmp_path / "b", seed=5, program="random", realisation=1)
     text = lambda d: (tmp_path / d / "observations.csv").read_bytes()
     assert text("a0") == text("a") and text("b") != text("a")

@@ -452,7 +452,7 @@ def test_synths_effect_scale_multiplies_each_effects_spread(tmp_path, kind, hidd
     nominal) x s, and leaves the other traits as they were; at 1 it writes what no scale writes."""
     kw = dict(robots=8, trials=2, seed=5, duration_s=10.0)
     one = synth(kind, hidden, tmp_path / "one", **kw)
-    default = synth(kind, hidden, tmp_path / "default", effect_scale=1.0, **kw)
+    synth(kind, hidden, tmp_path / "default", effect_scale=1.0, **kw)
     assert (tmp_path / "one" / "observations.csv").read_bytes() == (tmp_path / "default" / "observations.csv").read_bytes()
     half = synth(kind, hidden, tmp_path / "half", effect_scale=0.5, **kw)
     assert half["effect_scale"] == 0.5 and one["effect_scale"] == 1.0

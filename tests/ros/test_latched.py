@@ -8,7 +8,7 @@ the first subscription ignored), as a reader that DDS never serves.
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from kilobot_twin.ros import latched, qos
+from kilobot_twin.ros import qos
 from kilobot_twin.ros.latched import LatchedReader
 
 from ..nodes.graph import Graph
