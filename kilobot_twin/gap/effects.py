@@ -785,10 +785,12 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
         # linear maps' misses: a noiseless sensor's gains vary by its rounding, which is drawn
         # anew in full once the offset shifts by half a count (ROUNDING_DRAWN_ANEW) and grows no
         # further, so the map's column, taken at a probe of 8 counts, puts the gains' variance at
-        # a fraction of what the sensor rounds to, and its miss took the dither for such data
-        # about as often as not. Independent world 6712 and 6721 with robots' gains differing by
-        # 2e-4: the data's gains varied 0.028 and 0.017 counts^2 per unit^2 from sweep to sweep,
-        # the dither's 0.071 and 0.025, a noiseless model's 0.032 and 0.014; the dither was
+        # a fraction of what the sensor rounds to, and its miss took the dither for 4 of the 14
+        # independent worlds of seeds 30-49 (offsets shifting by 1.4 counts) that reached this
+        # branch, whose gains it then varied 0.87-2.1x as much as the data's (0.75-1.07x without
+        # noise). Independent worlds 6712 and 6721, robots' gains differing by 4.4e-5 and 4.8e-5
+        # of the gain (their stated sizes): the data's gains varied 0.028 and 0.017 counts^2 per unit^2 from sweep to sweep,
+        # the dither's 0.071 and 0.025, a noiseless model's 0.039 and 0.018; the dither was
         # taken, the null's robots spread by it and the gains were not flagged; without the
         # effect, on the same noise, the fits had come out without noise.
         z0 = sim_stats(0.0, 0.0)
