@@ -785,7 +785,7 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
         # linear maps' misses: a noiseless sensor's gains vary by its rounding, which is drawn
         # anew in full once the offset shifts by half a count (ROUNDING_DRAWN_ANEW) and grows no
         # further, so the map's column, taken at a probe of 8 counts, puts the gains' variance at
-        # a fraction of what the sensor rounds to, and its miss took the dither for 4 of the 14
+        # a fraction of what the sensor rounds to, and its miss took the dither for 4 of the 12
         # independent worlds of seeds 30-49 (offsets shifting by 1.4 counts) that reached this
         # branch, whose gains it then varied 0.87-2.1x as much as the data's (0.75-1.07x without
         # noise). Independent worlds 6712 and 6721, robots' gains differing by 4.4e-5 and 4.8e-5
