@@ -772,6 +772,8 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
     w = 1.0 / np.maximum(np.abs(A).max(axis=1), 1e-30)  # rows scaled so they weigh alike
     data = stats(meas)
     (excess, spread), _ = nnls(A * w[:, None], (data - r0) * w)
+    dithered = m.with_traits(sensor_noise=np.full(n, np.sqrt(ADC_ROUNDING_VAR + excess)),
+                             sensor_offset_trial_sd=np.full(n, np.sqrt(spread)))
     # Without noise where the data ask for none above the floor, or where ``like`` has none.
     noiseless = excess == 0.0 if like is None else not np.any(like.swarm.sensor_noise > 0)
     if noiseless:
@@ -789,10 +791,10 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
         # independent worlds of seeds 30-49 (offsets shifting by 1.4 counts) that reached this
         # branch, whose gains it then varied 0.87-2.1x as much as the data's (0.75-1.07x without
         # noise). Independent worlds 6712 and 6721, robots' gains differing by 4.4e-5 and 4.8e-5
-        # of the gain (their stated sizes): the data's gains varied 0.028 and 0.017 counts^2 per unit^2 from sweep to sweep,
-        # the dither's 0.071 and 0.025, a noiseless model's 0.039 and 0.018; the dither was
-        # taken, the null's robots spread by it and the gains were not flagged; without the
-        # effect, on the same noise, the fits had come out without noise.
+        # of the gain (their stated sizes): the data's gains varied 0.028 and 0.017 counts^2 per
+        # unit^2 from sweep to sweep, the dither's 0.071 and 0.025, a noiseless model's 0.039 and
+        # 0.018; the dither was taken, the null's robots spread by it and the gains were not
+        # flagged; without the effect, on the same noise, the fits had come out without noise.
         z0 = sim_stats(0.0, 0.0)
         col = (sim_stats(0.0, po) - z0) / po**2
         (spread0,), _ = nnls((col * w)[:, None], (data - z0) * w)
@@ -800,11 +802,8 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
             quiet = m.with_traits(sensor_noise=np.zeros(n), sensor_offset_trial_sd=np.full(n, np.sqrt(spread0)))
             if like is not None:
                 return quiet
-            dithered = m.with_traits(sensor_noise=np.full(n, np.sqrt(ADC_ROUNDING_VAR + excess)),
-                                     sensor_offset_trial_sd=np.full(n, np.sqrt(spread)))
             return quiet if _log_misfit(stats(resim(quiet)), data) <= _log_misfit(stats(resim(dithered)), data) else dithered
-    return m.with_traits(sensor_noise=np.full(n, np.sqrt(ADC_ROUNDING_VAR + excess)),
-                         sensor_offset_trial_sd=np.full(n, np.sqrt(spread)))
+    return dithered
 
 
 def _log_misfit(sim, data) -> float:
