@@ -39,7 +39,13 @@ class TwinModel:
     slope_pooling: dict = field(default_factory=dict)
     #: how the base's noise fit maps noise to summaries (:func:`fit_noise_levels`):
     #: ``diffusion_per_var`` (the diffusion summary per unit of sigma_omega^2) and
-    #: ``diffusion_within_var0`` (the within-robot variance of the diffusion without heading noise)
+    #: ``diffusion_within_var0`` (the within-robot variance of the diffusion without heading noise);
+    #: for the levels' intervals (:func:`noise_intervals`) the map ``map`` (4 statistics x 4
+    #: noises), its ``intercept``, each simulation's ``replicates`` and the ``probe_levels``, the
+    #: readings' spreads ``v_d`` and ``v_t`` where the fit combined them, and ``bias_est_var``; for
+    #: light sweeps (:func:`fit_sensor_noise`) ``sensor_map``, ``sensor_intercept``,
+    #: ``sensor_weights``, ``sensor_replicates``, ``sensor_probes`` and ``sensor_quiet`` (fitted
+    #: without reading noise)
     noise_map: dict = field(default_factory=dict)
     #: blink: where a robot's clock stands at a recording's first frame: ``aligned`` (it starts
     #: then) or ``random`` (anywhere in its LED cycle: robots started apart from a free-running
@@ -512,7 +518,10 @@ def fit_base(model: TwinModel, meas: dict, ref: dict, resim=None, noise: TwinMod
         # Identical robots (Eq. 4): all of the bias's spread beyond noise is trial-to-trial. A
         # fold takes the all-trials fit's, as the effects' folds do (Effect.refits_noise): the
         # base and an effect are scored on held-out trials with spreads fitted alike.
-        return m.with_traits(bias_trial_sd=_trial_spread(float(np.nanvar(b, ddof=1)), ref, m, None, noise))
+        m = m.with_traits(bias_trial_sd=_trial_spread(float(np.nanvar(b, ddof=1)), ref, m, None, noise))
+        if noise is None:  # what measurement and white noise make of it, for its interval
+            m.noise_map["bias_est_var"] = _est_var_bias(ref, m, None)
+        return m
     if model.kind == "light_sweep":
         g = model.swarm.sensor_gain.mean() * np.nanmean(meas["gain"]) / np.nanmean(ref["gain"])
         o = model.swarm.sensor_offset.mean() + np.nanmean(meas["offset"]) - np.nanmean(ref["offset"])
@@ -757,11 +766,17 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
 
     n = len(m.swarm)
 
+    def rep_stats(s):  # (M, 2): each replicate's within-robot variances of gain and offset
+        return np.stack([np.atleast_1d(within_var(s["gain"])), np.atleast_1d(within_var(s["offset"]))], -1)
+
     def stats(s):  # (2,), averaged over replicates for simulations
-        return np.array([np.mean(within_var(s["gain"])), np.mean(within_var(s["offset"]))])
+        return rep_stats(s).mean(axis=0)
+
+    reps = []  # each simulation's replicates, for the levels' intervals (noise_intervals)
 
     def sim_stats(noise, spread):
-        return stats(resim(m.with_traits(sensor_noise=np.full(n, noise), sensor_offset_trial_sd=np.full(n, spread))))
+        reps.append(rep_stats(resim(m.with_traits(sensor_noise=np.full(n, noise), sensor_offset_trial_sd=np.full(n, spread)))))
+        return reps[-1].mean(axis=0)
 
     # The map is anchored at the floor, not at 0: without noise the rounding of a smooth sweep
     # is the same in every sweep, with noise it dithers, so the statistics jump between the two.
@@ -774,6 +789,9 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
     (excess, spread), _ = nnls(A * w[:, None], (data - r0) * w)
     dithered = m.with_traits(sensor_noise=np.full(n, np.sqrt(ADC_ROUNDING_VAR + excess)),
                              sensor_offset_trial_sd=np.full(n, np.sqrt(spread)))
+    # the map and its intercept, for the levels' intervals (noise_intervals)
+    dithered.noise_map.update(sensor_map=A, sensor_intercept=r0, sensor_weights=w, sensor_replicates=reps[:3],
+                              sensor_probes=[pn**2 - ADC_ROUNDING_VAR, po**2])
     # Without noise where the data ask for none above the floor, or where ``like`` has none.
     noiseless = excess == 0.0 if like is None else not np.any(like.swarm.sensor_noise > 0)
     if noiseless:
@@ -800,6 +818,8 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
         (spread0,), _ = nnls((col * w)[:, None], (data - z0) * w)
         if np.sqrt(spread0) >= ROUNDING_DRAWN_ANEW:
             quiet = m.with_traits(sensor_noise=np.zeros(n), sensor_offset_trial_sd=np.full(n, np.sqrt(spread0)))
+            quiet.noise_map.update(sensor_map=np.column_stack([A[:, 0], col]), sensor_intercept=z0, sensor_weights=w,
+                                   sensor_quiet=True, sensor_replicates=reps[3:5], sensor_probes=[po**2])
             if like is not None:
                 return quiet
             return quiet if _log_misfit(stats(resim(quiet)), data) <= _log_misfit(stats(resim(dithered)), data) else dithered
@@ -863,7 +883,9 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     variances: each noise adds its variance to what the statistic measures, tracking noise and
     detrending form the intercept. Four simulations (no noise, each noise at a probe level) give
     the map; a non-negative least-squares solve (rows scaled alike) gives the variances, so a
-    noise that is absent from the data comes out 0 rather than breaking the fit.
+    noise that is absent from the data comes out 0 rather than breaking the fit
+    (:func:`solve_noise_vars`). The map, its intercept and the readings' spreads are kept in
+    ``noise_map`` for the levels' intervals (:func:`noise_intervals`).
 
     The fourth statistic, the pooled within-robot variance of trial turn rates (its simulated
     value the median over replicates, its scatter a robust sd: :func:`_replicate_centre`), reads
@@ -877,15 +899,13 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
     by their sampling sds, rows whose intercept another world does not share, such as a speed
     diffusion 7 sd below the twin's noiseless one, would dominate it.)
     """
-    from scipy.optimize import nnls
-
     n = len(model.swarm)
     z = model.with_traits(sigma_omega=np.zeros(n), sigma_v=np.zeros(n), bias_trial_sd=np.zeros(n), speed_trial_sd=0.0)
     keys = ("sigma_omega", "sigma_v", "speed_trial_sd", "bias_trial_sd")
     sims = [resim(z)]
     reps = [_noise_stats(sims[0])]  # (M, 4) each
     s = [_replicate_centre(reps[0])]
-    cols = []
+    cols, levels = [], []
     for k in keys:
         # Each probe must move the statistic it is read from by more than the simulations
         # scatter (3 standard errors), else the map's column is noise: under heavy tracking
@@ -906,45 +926,188 @@ def fit_noise_levels(model: TwinModel, meas: dict, resim) -> TwinModel:
         reps.append(st)
         s.append(_replicate_centre(st))
         cols.append((s[-1] - s[0]) / level**2)
+        levels.append(level)
     A = np.column_stack(cols)
     target = _noise_stats(meas) - s[0]
-    # Rows 0-2 (diffusion, speed variance, speed diffusion) in the three noise variances, scaled
-    # so the statistics weigh alike (they differ by orders of magnitude).
-    A3, t3 = A[:3, :3], target[:3]
-    w = 1.0 / np.maximum(np.abs(A3).max(axis=1), 1e-30)
-    var = nnls(A3 * w[:, None], t3 * w)[0]
-    # The turn rates' reading of the heading noise (row 3, less what the speed noises add): it
-    # is sigma_omega^2 plus the trial-to-trial bias spread's part, so where it reads less than
-    # the diffusion did the spread is 0 and the two readings are combined by their precisions
-    # (:func:`bounded_combination`), each from its scatter over replicates at the turn rates'
-    # level (one more simulation).
-    if A[3, 0] > 0:
-        t_est = max((target[3] - A[3, 1] * var[1] - A[3, 2] * var[2]) / A[3, 0], 0.0)
-        if var[0] > t_est:
-            with np.errstate(all="ignore"):
-                at = model.with_traits(sigma_omega=np.full(n, np.sqrt(t_est)), sigma_v=np.full(n, np.sqrt(var[1])),
-                                       speed_trial_sd=float(np.sqrt(var[2])), bias_trial_sd=np.zeros(n))
-                st = _noise_stats(resim(at))
-                v_d = (float(robust_sd(st[:, 0])) / A[0, 0]) ** 2 if A[0, 0] > 0 else np.inf
-                v_t = (float(robust_sd(st[:, 3])) / A[3, 0]) ** 2
-            s2 = bounded_combination(float(var[0]), v_d, t_est, v_t)
-            # The speed noises again from their own rows (the diffusion's excess is not theirs).
-            rest = nnls(A3[1:, 1:] * w[1:, None], (t3[1:] - A3[1:, 0] * s2) * w[1:])[0]
-            var = np.array([s2, *rest])
-    # The trial speeds' within-robot variance (row 1) is what every speed test and prediction
-    # rests on (the F ratio's within-robot mean square, a held-out trial's spread); the speed
-    # diffusion (row 2) only splits it between the two speed noises. When the split asks for
-    # more speed noise than the trial speeds show (the trial jitter at its floor of 0), row 1
-    # wins: the speed diffusion scatters by about its own size over a dozen robots, and a sigma_v
-    # read from it 2 se high predicted trial speeds 2.9x as variable as measured, which kept a
-    # right speed_heterogeneity from resolving its signal (synth pair 3004).
-    if A[1, 1] > 0 and var[2] == 0.0:
-        var[1] = min(var[1], max((target[1] - A[1, 0] * var[0]) / A[1, 1], 0.0))
+    spreads = {}
+
+    def spreads_at(t_est, var):
+        # The turn rates' reading of the heading noise and the diffusion's, each with its scatter
+        # over replicates, at the turn rates' level (one more simulation).
+        with np.errstate(all="ignore"):
+            at = model.with_traits(sigma_omega=np.full(n, np.sqrt(t_est)), sigma_v=np.full(n, np.sqrt(var[1])),
+                                   speed_trial_sd=float(np.sqrt(var[2])), bias_trial_sd=np.zeros(n))
+            spreads.update(_reading_spreads(_noise_stats(resim(at)), A))
+        return spreads["v_d"], spreads["v_t"]
+
+    var = solve_noise_vars(A, target, spreads_at)
     m = model.with_traits(sigma_omega=np.full(n, np.sqrt(var[0])), sigma_v=np.full(n, np.sqrt(var[1])),
                           speed_trial_sd=float(np.sqrt(var[2])))
     m.noise_map = {"diffusion_per_var": float(A[0, 0]),
-                   "diffusion_within_var0": float(np.nanmean(within_var(sims[0]["diffusion"])))}
+                   "diffusion_within_var0": float(np.nanmean(within_var(sims[0]["diffusion"]))),
+                   "map": A, "intercept": s[0], "replicates": reps, "probe_levels": levels, **spreads}
     return m
+
+
+def _reading_spreads(st, A) -> dict:
+    """The sampling variances of the diffusion's and the turn rates' readings of sigma_omega^2
+    (``v_d``, ``v_t``), from a simulation's statistics (M, 4) and the map ``A``: each row's robust
+    sd over replicates through its heading-noise column."""
+    with np.errstate(all="ignore"):
+        return {"v_d": (float(robust_sd(st[:, 0])) / A[0, 0]) ** 2 if A[0, 0] > 0 else np.inf,
+                "v_t": (float(robust_sd(st[:, 3])) / A[3, 0]) ** 2}
+
+
+def noise_intervals(model: TwinModel, meas: dict, rng: np.random.Generator, boot: int = 400,
+                    level: float = 0.9, resim=None) -> dict:
+    """Intervals for the motion base's noise levels: a bootstrap over robots of the data's
+    statistics (robots are the units the data sample), each replicate solved as the fit solved
+    them (:func:`solve_noise_vars`) on the fit's map and intercept, whose simulations' replicates
+    are resampled alongside (:func:`_resampled_maps`), and the trial-to-trial bias spread read as
+    the fit reads it (less what measurement and white noise make). Left out: the error of the
+    tracking noise fitted where the data are read, and any way another world's noise differs
+    from the twin's kind.
+
+    Returns nuisance -> [lower, upper] at ``level`` (expanded percentiles,
+    :func:`_expanded_percentiles`); {} for a model whose noise was not fitted here. Light sweeps:
+    :func:`_sensor_intervals`. ``resim`` simulates where a replicate combines the diffusion's and
+    the turn rates' readings and the fit did not (their spreads at the fitted levels; without it
+    those replicates take the diffusion's reading alone).
+    """
+    nm = model.noise_map
+    if model.kind == "light_sweep" and "sensor_map" in nm:
+        return _sensor_intervals(nm, meas, rng, boot, level)
+    if model.kind != "motion" or "map" not in nm:
+        return {}
+    A, s0 = np.asarray(nm["map"]), np.asarray(nm["intercept"])
+    n = meas["turn_rate"].shape[-1]
+    spreads = {k: nm[k] for k in ("v_d", "v_t") if k in nm}
+
+    def spreads_at(t_est, var):
+        if not spreads:
+            spreads.update(_reading_spreads(_noise_stats(resim(model)), A) if resim is not None else {"v_d": 0.0, "v_t": np.inf})
+        return spreads["v_d"], spreads["v_t"]
+
+    idx = rng.integers(0, n, (boot, n))
+    take = {k: np.moveaxis(np.asarray(meas[k], dtype=float)[:, idx], 1, 0)
+            for k in ("diffusion", "speed", "speed_diffusion", "turn_rate")}  # (boot, K, n)
+    stats = _noise_stats(take)
+    maps, s0s = _resampled_maps(nm, rng, boot) if "replicates" in nm else (np.broadcast_to(A, (boot,) + A.shape),
+                                                                            np.broadcast_to(s0, (boot, 4)))
+    var = np.array([solve_noise_vars(a, t - c, spreads_at) if np.all(np.isfinite(t - c)) else np.full(3, np.nan)
+                    for a, t, c in zip(maps, stats, s0s)])
+    q = _expanded_percentiles(n, level)
+    out = {}
+    for j, key in enumerate(("sigma_omega", "sigma_v", "speed_trial_sd")):
+        out[key] = [float(x) for x in np.sqrt(np.nanpercentile(var[:, j], q))]
+    if "bias_est_var" in nm:
+        b = _bias(take["turn_rate"], model)
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            v = np.nanvar(b.reshape(boot, -1), axis=1, ddof=1)
+        out["bias_trial_sd"] = [float(x) for x in np.sqrt(np.maximum(np.nanpercentile(v - nm["bias_est_var"], q), 0.0))]
+    return out
+
+
+def _resampled_maps(nm: dict, rng: np.random.Generator, boot: int):
+    """The noise map and its intercept (:func:`fit_noise_levels`) from the simulations'
+    replicates resampled, ``boot`` times: (boot, 4, 4) maps and (boot, 4) intercepts, so that
+    the levels' intervals carry the map's Monte Carlo error beside the robots' scatter (the
+    intercept's matters where tracking noise makes most of the diffusion). Centres as
+    :func:`_replicate_centre` takes them."""
+    centres = []
+    for r in nm["replicates"]:
+        r = np.asarray(r, dtype=float)
+        x = r[rng.integers(0, len(r), (boot, len(r)))]  # (boot, M, 4)
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            c = np.nanmean(x, axis=1)
+            c[:, 3] = np.nanmedian(x[:, :, 3], axis=1)
+        centres.append(c)
+    cols = [(centres[j + 1] - centres[0]) / lv**2 for j, lv in enumerate(nm["probe_levels"])]
+    return np.stack(cols, axis=-1), centres[0]
+
+
+def _expanded_percentiles(n: int, level: float) -> list:
+    """Hesterberg's expanded percentile interval: the percentiles at which a t interval on n - 1
+    dof, widened by sqrt(n / (n - 1)), would stand. A plain percentile interval is too narrow on
+    few robots (the bootstrap's spread is the robots' with ddof 0, and its tails are the
+    normal's), by a factor that on 6 robots is 1.3."""
+    from scipy import stats
+
+    z = stats.t.isf((1 - level) / 2, max(n - 1, 1)) * np.sqrt(n / max(n - 1, 1))
+    tail = float(stats.norm.sf(z))
+    return [100 * tail, 100 * (1 - tail)]
+
+
+def _sensor_intervals(nm: dict, meas: dict, rng: np.random.Generator, boot: int, level: float) -> dict:
+    """:func:`noise_intervals` for the light sensor's noises (:func:`fit_sensor_noise`): robots
+    resampled, the within-robot variances of gain and offset solved on the fit's map, its
+    simulations' replicates resampled alongside. A sensor
+    fitted without reading noise keeps that kind in every resample (the kind is chosen by
+    simulation, not estimated), so only its offset spread has an interval."""
+    from scipy.optimize import nnls
+
+    quiet = bool(nm.get("sensor_quiet", False))
+    n = meas["gain"].shape[-1]
+    idx = rng.integers(0, n, (boot, n))
+    st = np.stack([within_var(np.moveaxis(np.asarray(meas[k], dtype=float)[:, idx], 1, 0)) for k in ("gain", "offset")], -1)
+    w = np.asarray(nm["sensor_weights"])  # the fit's row scaling
+    q = _expanded_percentiles(n, level)
+    # the map and intercept from the simulations' replicates resampled (their Monte Carlo error)
+    if "sensor_replicates" in nm:
+        centres = [np.asarray(r)[rng.integers(0, len(r), (boot, len(r)))].mean(axis=1) for r in nm["sensor_replicates"]]
+        cols = np.stack([(c - centres[0]) / d for c, d in zip(centres[1:], nm["sensor_probes"])], -1)  # (boot, 2, k)
+        r0s = centres[0]
+    else:  # a map given without its replicates
+        A = np.asarray(nm["sensor_map"])
+        cols = np.broadcast_to(A[:, 1:] if quiet else A, (boot, 2, 1 if quiet else 2))
+        r0s = np.broadcast_to(np.asarray(nm["sensor_intercept"]), (boot, 2))
+    if quiet:
+        spread = np.array([nnls(a * w[:, None], (t - c) * w)[0][0] for a, t, c in zip(cols, st, r0s)])
+        return {"sensor_offset_trial_sd": [float(x) for x in np.sqrt(np.percentile(spread, q))]}
+    sol = np.array([nnls(a * w[:, None], (t - c) * w)[0] for a, t, c in zip(cols, st, r0s)])
+    return {"sensor_noise": [float(x) for x in np.sqrt(ADC_ROUNDING_VAR + np.percentile(sol[:, 0], q))],
+            "sensor_offset_trial_sd": [float(x) for x in np.sqrt(np.percentile(sol[:, 1], q))]}
+
+
+def solve_noise_vars(A, target, spreads_at) -> np.ndarray:
+    """The three noise variances (sigma_omega^2, sigma_v^2, speed_trial_sd^2) from the map ``A``
+    (4 statistics x 4 noises, :func:`fit_noise_levels`) and ``target``, the four statistics of
+    :func:`_noise_stats` less the noiseless simulation's. ``spreads_at(t_est, var)`` gives the
+    sampling variances of the diffusion's and the turn rates' readings of sigma_omega^2 where
+    they are combined (:func:`bounded_combination`).
+
+    Rows 0-2 (diffusion, speed variance, speed diffusion) in the three noise variances, scaled so
+    the statistics weigh alike (they differ by orders of magnitude): a non-negative least-squares
+    solve. The turn rates' reading of the heading noise (row 3, less what the speed noises add)
+    is sigma_omega^2 plus the trial-to-trial bias spread's part, so where it reads less than the
+    diffusion did the spread is 0 and the two readings are combined by their precisions, and
+    the speed noises are solved again from their own rows (the diffusion's excess is not theirs).
+
+    The trial speeds' within-robot variance (row 1) is what every speed test and prediction rests
+    on (the F ratio's within-robot mean square, a held-out trial's spread); the speed diffusion
+    (row 2) only splits it between the two speed noises. When the split asks for more speed
+    noise than the trial speeds show (the trial jitter at its floor of 0), row 1 wins: the speed
+    diffusion scatters by about its own size over a dozen robots, and a sigma_v read from it 2 se
+    high predicted trial speeds 2.9x as variable as measured, which kept a right
+    speed_heterogeneity from resolving its signal (synth pair 3004).
+    """
+    from scipy.optimize import nnls
+
+    A3, t3 = A[:3, :3], target[:3]
+    w = 1.0 / np.maximum(np.abs(A3).max(axis=1), 1e-30)
+    var = nnls(A3 * w[:, None], t3 * w)[0]
+    if A[3, 0] > 0:
+        t_est = max((target[3] - A[3, 1] * var[1] - A[3, 2] * var[2]) / A[3, 0], 0.0)
+        if var[0] > t_est:
+            v_d, v_t = spreads_at(t_est, var)
+            s2 = bounded_combination(float(var[0]), v_d, t_est, v_t)
+            rest = nnls(A3[1:, 1:] * w[1:, None], (t3[1:] - A3[1:, 0] * s2) * w[1:])[0]
+            var = np.array([s2, *rest])
+    if A[1, 1] > 0 and var[2] == 0.0:
+        var[1] = min(var[1], max((target[1] - A[1, 0] * var[0]) / A[1, 1], 0.0))
+    return var
 
 
 # --- named effects ---------------------------------------------------------------------------------

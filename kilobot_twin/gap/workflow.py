@@ -75,7 +75,7 @@ class GapSettings:
 
 
 _PURPOSE = {"base_ref": 1, "base_probe": 2, "effect_ref": 3, "effect_resim": 4, "heldout": 5, "null": 6, "bootstrap": 7, "power": 8,
-            "sensitivity": 9, "base_level": 10, "shared": 11}
+            "sensitivity": 9, "base_level": 10, "shared": 11, "nuisance_ci": 12}
 
 
 def child_seed(root: int, purpose: str, *keys: int) -> int:
@@ -1302,6 +1302,8 @@ def analyse(ds: measured.Dataset, gs: GapSettings, base: E.TwinModel | None = No
         "shared_rounding_sd": {c: pred_final[c]["shared_sd"] for c in comps},
         "tests": tests,  # the detection's statistics (round 0), flagged or not
         "nuisances": _nuisances(fitter.fit((), all_trials), cond) if fit_base else {},
+        # how far the robots at hand pin the base's noise levels (effects.noise_intervals)
+        "nuisance_ci90": (_nuisance_intervals(fitter, meas, cond, gs) if fit_base else {}),
         # Per-robot estimates of the named effects' traits: ``individual`` (in model.yaml: the
         # robots' spread kept) and ``predictive`` (pooled towards the population: each robot's
         # best prediction, what the held-out gap was scored with).
@@ -2005,6 +2007,33 @@ def _heldout_gain(x, drift: bool, base_absorbs: bool, noise: tuple | None = None
     return gain, rival
 
 
+def _nuisance_intervals(fitter: _Fitter, meas: dict, cond: Conditions, gs: GapSettings) -> dict:
+    """90 % intervals of the base's fitted noise levels over the robots that could have been
+    tracked or swept (:func:`effects.noise_intervals`), with its own random numbers, named as
+    :func:`_nuisances` names the levels."""
+    rng = np.random.default_rng(child_seed(gs.seed, "nuisance_ci"))
+    base = fitter.fit((), list(range(cond.trials)))
+    ci = E.noise_intervals(base, meas, rng, gs.boot, 0.9,
+                           lambda m: simulate(cond, m, gs.m_ref, child_seed(gs.seed, "nuisance_ci", 1)))
+    if base.kind == "light_sweep":  # as _nuisances names them: per sample, per reading, in counts
+        out = {}
+        if "sensor_noise" in ci:
+            per = np.sqrt(_samples_per_reading(cond))
+            out["sensor_noise_per_sample_counts"] = ci["sensor_noise"]
+            out["reading_noise_counts"] = [v / per for v in ci["sensor_noise"]]
+        if "sensor_offset_trial_sd" in ci:
+            out["sensor_offset_trial_sd_counts"] = ci["sensor_offset_trial_sd"]
+        return out
+    unit = {"sigma_omega": "sigma_omega_rad_sqrt_s", "sigma_v": "sigma_v_m_sqrt_s"}  # as _nuisances names them
+    return {unit.get(k, k): v for k, v in ci.items()}
+
+
+def _samples_per_reading(cond: Conditions) -> int:
+    """ADC samples a light reading averages: the twin's reading noise is per sample, so the noise a
+    reading carries (what a user measures of a still robot) is sd / sqrt(samples)."""
+    return int(synth.light_scenario(cond.duration_s, cond.dt_s, cond.sensor_knee).sensor.samples)
+
+
 def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
     """The nuisance levels the base model fitted to the data (population values)."""
     sw = base.swarm
@@ -2025,9 +2054,7 @@ def _nuisances(base: E.TwinModel, cond: Conditions) -> dict:
                     "lens_centre_prior_sd_m": list(cond.lens["centre_prior_sd_m"])}
                    if cond.lens is not None else {})}
     if base.kind == "light_sweep":
-        # The twin's reading noise is per ADC sample, and a reading averages ``samples`` of them:
-        # the noise a reading carries (what a user measures of a still robot) is sd / sqrt(samples).
-        samples = synth.light_scenario(cond.duration_s, cond.dt_s, cond.sensor_knee).sensor.samples
+        samples = _samples_per_reading(cond)
         return {"sensor_noise_per_sample_counts": float(sw.sensor_noise.mean()),
                 "reading_noise_counts": float(sw.sensor_noise.mean() / np.sqrt(samples)), "samples_per_reading": int(samples),
                 "sensor_offset_trial_sd_counts": float(sw.sensor_offset_trial_sd.mean()),

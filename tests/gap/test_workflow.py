@@ -61,6 +61,13 @@ def test_heading_bias_named_recovered_and_gap_shrinks(tmp_path):
     assert nz["wander_lags_s"] == pytest.approx([1.0, float(np.clip(10 * np.sqrt(e / 0.002), 4, 20))])
     assert ("white heading noise that makes the tracks wander as much as measured between 1 and %.2g s"
             % nz["wander_lags_s"][1]) in (tmp_path / "out" / "report.md").read_text()
+    # The base's noise levels with their 90 % intervals (tests/gap/test_nuisance_ci.py checks
+    # their coverage), named as the levels are, in report.json and report.md.
+    ci = doc["datasets"][0]["nuisance_ci90"]
+    assert set(ci) == {"sigma_omega_rad_sqrt_s", "sigma_v_m_sqrt_s", "speed_trial_sd", "bias_trial_sd"}
+    assert all(0 <= lo <= hi for lo, hi in ci.values())
+    assert "sigma_omega_rad_sqrt_s %.3g (90 %% CI %.3g .. %.3g)" % (nz["sigma_omega_rad_sqrt_s"], *ci["sigma_omega_rad_sqrt_s"]) \
+        in (tmp_path / "out" / "report.md").read_text()
     # What it can see: naming needs the flag, so no size it names is below the one it detects.
     md = (tmp_path / "out" / "report.md").read_text()
     for eff, v in doc["datasets"][0]["minimum_detectable"].items():
@@ -154,6 +161,12 @@ def test_recovered_sensor_gain_and_offset_match_the_truth_in_slope_and_intercept
         assert np.all(np.abs(got - true) <= tol), (trait, got - true, tol)
         slope, intercept = np.polyfit(true, got, 1)
         assert abs(slope - 1) <= 0.1, (trait, slope)
+    # The sensor's two noises with 90 % intervals; the noise a reading carries is the per-sample
+    # one over the root of the samples a reading averages, as for the levels themselves.
+    sec = json.loads((tmp_path / "out" / "report.json").read_text())["datasets"][0]
+    ci, nz = sec["nuisance_ci90"], sec["nuisances"]
+    assert set(ci) == {"sensor_noise_per_sample_counts", "reading_noise_counts", "sensor_offset_trial_sd_counts"}
+    assert np.allclose(ci["reading_noise_counts"], np.asarray(ci["sensor_noise_per_sample_counts"]) / np.sqrt(nz["samples_per_reading"]))
 
 
 @pytest.mark.parametrize("kind, hidden, trait", [("blink", "clock_drift", "clock_rate")])
