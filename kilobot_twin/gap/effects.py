@@ -45,7 +45,9 @@ class TwinModel:
     #: readings' spreads ``v_d`` and ``v_t`` where the fit combined them, and ``bias_est_var``; for
     #: light sweeps (:func:`fit_sensor_noise`) ``sensor_map``, ``sensor_intercept``,
     #: ``sensor_weights``, ``sensor_replicates``, ``sensor_probes`` and ``sensor_quiet`` (fitted
-    #: without reading noise)
+    #: without reading noise); for blinks (:func:`_jitter_at_its_timing`) ``clock_timing`` (the
+    #: part of the rates' spread put down to timing to frames), ``clock_keep``, ``clock_clip`` and
+    #: ``clock_own``
     noise_map: dict = field(default_factory=dict)
     #: blink: where a robot's clock stands at a recording's first frame: ``aligned`` (it starts
     #: then) or ``random`` (anywhere in its LED cycle: robots started apart from a free-running
@@ -721,10 +723,13 @@ def _jitter_at_its_timing(m: TwinModel, rate, resim, own: bool) -> TwinModel:
     for step in range(JITTER_STEPS + 1):
         if step:
             sim = resim(m)
-        jitter = max(data - (float(np.nanmean(spread(sim["toggle_rate"], keep, clip))) - jitter), 0.0)
+        timing = float(np.nanmean(spread(sim["toggle_rate"], keep, clip))) - jitter  # the spread less the jitter's
+        jitter = max(data - timing, 0.0)
         m = m.with_traits(clock_trial_sd=np.full(n, np.sqrt(jitter)))
         if jitter == 0.0:
             break
+    # what the jitter was read against, for its interval (noise_intervals)
+    m.noise_map.update(clock_timing=timing, clock_keep=keep, clock_clip=clip, clock_own=own)
     return m
 
 
@@ -970,13 +975,15 @@ def noise_intervals(model: TwinModel, meas: dict, rng: np.random.Generator, boot
 
     Returns nuisance -> [lower, upper] at ``level`` (expanded percentiles,
     :func:`_expanded_percentiles`); {} for a model whose noise was not fitted here. Light sweeps:
-    :func:`_sensor_intervals`. ``resim`` simulates where a replicate combines the diffusion's and
+    :func:`_sensor_intervals`; blinks: :func:`_clock_intervals`. ``resim`` simulates where a replicate combines the diffusion's and
     the turn rates' readings and the fit did not (their spreads at the fitted levels; without it
     those replicates take the diffusion's reading alone).
     """
     nm = model.noise_map
     if model.kind == "light_sweep" and "sensor_map" in nm:
         return _sensor_intervals(nm, meas, rng, boot, level)
+    if model.kind == "blink" and "clock_timing" in nm:
+        return _clock_intervals(nm, meas, rng, boot, level)
     if model.kind != "motion" or "map" not in nm:
         return {}
     A, s0 = np.asarray(nm["map"]), np.asarray(nm["intercept"])
@@ -1069,6 +1076,20 @@ def _sensor_intervals(nm: dict, meas: dict, rng: np.random.Generator, boot: int,
     sol = np.array([nnls(a * w[:, None], (t - c) * w)[0] for a, t, c in zip(cols, st, r0s)])
     return {"sensor_noise": [float(x) for x in np.sqrt(ADC_ROUNDING_VAR + np.percentile(sol[:, 0], q))],
             "sensor_offset_trial_sd": [float(x) for x in np.sqrt(np.percentile(sol[:, 1], q))]}
+
+
+def _clock_intervals(nm: dict, meas: dict, rng: np.random.Generator, boot: int, level: float) -> dict:
+    """:func:`noise_intervals` for the clocks' trial-to-trial jitter (:func:`_jitter_at_its_timing`):
+    robots resampled with their cells and the clip the fit took, the spread of their toggle rates
+    less the part the fit's simulations put down to timing to frames."""
+    rate = np.asarray(meas["toggle_rate"], dtype=float)
+    n = rate.shape[-1]
+    idx = rng.integers(0, n, (boot, n))
+    keep = np.moveaxis(np.asarray(nm["clock_keep"])[:, idx], 1, 0)
+    spread = _spread_own if nm["clock_own"] else _spread_all
+    v = spread(np.moveaxis(rate[:, idx], 1, 0), keep, nm["clock_clip"]) - nm["clock_timing"]
+    q = _expanded_percentiles(n, level)
+    return {"clock_trial_sd": [float(x) for x in np.sqrt(np.maximum(np.nanpercentile(v, q), 0.0))]}
 
 
 def solve_noise_vars(A, target, spreads_at) -> np.ndarray:

@@ -197,7 +197,8 @@ def write_markdown(out: Path, report: dict, residuals: list) -> Path:
                       "on the base fit's simulated map, its replicates resampled too: they say how far the robots "
                       "at hand pin each level, not how far another world's noise may differ from the twin's kind "
                       "of noise, and a level at 0 in every resample reads 0 .. 0. On another simulator's worlds "
-                      "they held its truth in 82-90 % (docs/gap_methods.md)."]
+                      "they held its truth in 82-90 %, less where its noise was not of the twin's kinds "
+                      "(docs/gap_methods.md)."]
         lags = s.get("nuisances", {}).get("wander_lags_s")
         if lags:
             lines += ["", _white_noise_text(lags)]

@@ -187,3 +187,38 @@ def test_a_sensor_fitted_without_noise_states_an_interval_for_its_offsets_alone(
     rng = np.random.default_rng(3)
     ci = E.noise_intervals(_sensor_model(12, quiet=True), _sweeps(rng, 12), rng, boot=200)
     assert set(ci) == {"sensor_offset_trial_sd"} and ci["sensor_offset_trial_sd"][0] > 0
+
+
+# The clocks' trial-to-trial jitter (effects._jitter_at_its_timing): identical clocks whose rate
+# each trial scales by 1 + jitter z, counted against frames with a relative timing error of its
+# own; the fit puts TIMING^2 of the rates' spread down to timing.
+JITTER, TIMING = 0.002, 0.0015
+
+
+def _clocks(rng, N, K=4):
+    return {"toggle_rate": 0.26 * (1 + JITTER * rng.standard_normal((K, N)) + TIMING * rng.standard_normal((K, N)))}
+
+
+def _clock_model(N, K=4):
+    m = E.nominal_model("blink", np.arange(N))
+    m.noise_map = {"clock_timing": TIMING**2, "clock_keep": np.ones((K, N), bool), "clock_clip": np.inf, "clock_own": False}
+    return m
+
+
+@pytest.mark.parametrize("robots, floor", [(16, 0.825), (6, 0.83)])
+def test_the_clock_jitters_interval_holds_the_truth_about_ninety_percent_of_the_time(robots, floor):
+    """300 fresh datasets of the written-out clocks, the band floor - 3 sd .. 0.90 + 3 sd,
+    ``floor`` the least coverage measured over 400 datasets (16 robots: 0.825, 0.845 and 0.865 in
+    three runs; 6 robots: 0.83). A percentile interval of a variance from a few dozen rates covers
+    below its level: the sampling distribution is skewed the other way (bias-corrected
+    percentiles gained 2 points in a trial, not adopted). Without the timing part taken off, the
+    interval misses the truth in nearly every dataset."""
+    rng = np.random.default_rng(20261202 + robots)
+    model = _clock_model(robots)
+    R = 300
+    held = 0
+    for _ in range(R):
+        lo, hi = E.noise_intervals(model, _clocks(rng, robots), rng, boot=200)["clock_trial_sd"]
+        held += lo <= JITTER <= hi
+    sd = np.sqrt(0.9 * 0.1 / R)
+    assert floor - 3 * sd <= held / R <= 0.90 + 3 * sd, held / R

@@ -177,6 +177,11 @@ def test_sensor_and_clock_effects(tmp_path, kind, hidden, trait):
     true = np.array([truth["robots"][str(i)][trait] for i in fitted.ids])
     assert np.corrcoef(true, fitted.values[trait])[0, 1] >= 0.95
     assert rep["gap_shrink"]["ci95"][0] > 0
+    # the clocks' trial-to-trial jitter with its 90 % interval
+    sec = json.loads((tmp_path / "out" / "report.json").read_text())["datasets"][0]
+    lo, hi = sec["nuisance_ci90"]["clock_trial_sd"]
+    assert 0 <= lo <= hi and "clock_trial_sd %.3g (90 %% CI %.3g .. %.3g)" % (sec["nuisances"]["clock_trial_sd"], lo, hi) \
+        in (tmp_path / "out" / "report.md").read_text()
 
 
 def test_updated_model_loads_into_the_batch_engine(tmp_path):
