@@ -51,6 +51,29 @@ def _model(N=30):
     return m
 
 
+R = 300  # fresh datasets per coverage check: a coverage's binomial sd is 0.017 at 0.90
+
+
+def _coverage(model, draw, truth: dict, rng) -> dict:
+    """How often each level's 90 % interval holds its truth over R datasets ``draw(rng)``; the
+    model (or a fresh one, when ``model`` is callable) states an interval for every level."""
+    hits = {k: 0 for k in truth}
+    for _ in range(R):
+        m = model(rng) if callable(model) else model
+        ci = E.noise_intervals(m, draw(rng), rng, boot=200, level=0.9)
+        assert set(ci) == set(truth)
+        for k, (lo, hi) in ci.items():
+            hits[k] += lo <= truth[k] <= hi
+    return {k: v / R for k, v in hits.items()}
+
+
+def _within(cover: dict, floor: float, ceiling: float = 0.90) -> None:
+    """Each coverage within floor - 3 sd .. ceiling + 3 sd (binomial sd at 0.90)."""
+    sd = np.sqrt(0.9 * 0.1 / R)
+    for k, c in cover.items():
+        assert floor - 3 * sd <= c <= ceiling + 3 * sd, (k, c)
+
+
 @pytest.mark.parametrize("robots, floor", [(30, 0.87), (6, 0.84)])
 def test_ninety_percent_intervals_hold_the_truth_about_ninety_percent_of_the_time(robots, floor):
     """300 fresh datasets: each level's coverage is binomial about its true coverage (sd 0.017 at
@@ -61,17 +84,7 @@ def test_ninety_percent_intervals_hold_the_truth_about_ninety_percent_of_the_tim
     per-robot wander is then left out), if the solve forgets the noiseless intercept, or on 6
     robots if the percentiles are not expanded (plain ones cover 0.74-0.80 there)."""
     rng = np.random.default_rng(20261130 + robots)
-    model = _model(robots)
-    hits = {k: 0 for k in TRUE}
-    R = 300
-    for _ in range(R):
-        ci = E.noise_intervals(model, _dataset(rng, robots), rng, boot=200, level=0.9)
-        assert set(ci) == set(TRUE)
-        for k, (lo, hi) in ci.items():
-            hits[k] += lo <= TRUE[k] <= hi
-    sd = np.sqrt(0.9 * 0.1 / R)
-    for k in TRUE:
-        assert floor - 3 * sd <= hits[k] / R <= 0.90 + 3 * sd, (k, hits[k] / R)
+    _within(_coverage(_model(robots), lambda g: _dataset(g, robots), TRUE, rng), floor)
 
 
 def _simulated_model(rng, N, S0_sim, M, sd):
@@ -99,16 +112,8 @@ def test_intervals_carry_the_maps_monte_carlo_error_where_the_intercept_is_most_
     rng = np.random.default_rng(11)
     N = 30
     S0_sim = S0 + np.array([6 * A[0, 0] * TRUE["sigma_omega"] ** 2, 0.0, 0.0, 0.0])
-    hits = {k: 0 for k in TRUE}
-    R = 300
-    for _ in range(R):
-        model = _simulated_model(rng, N, S0_sim, M=5, sd=0.3)
-        ci = E.noise_intervals(model, _dataset(rng, N, S0_sim), rng, boot=200)
-        for k, (lo, hi) in ci.items():
-            hits[k] += lo <= TRUE[k] <= hi
-    sd = np.sqrt(0.9 * 0.1 / R)
-    for k in TRUE:
-        assert hits[k] / R >= 0.87 - 3 * sd, (k, hits[k] / R)
+    cover = _coverage(lambda g: _simulated_model(g, N, S0_sim, M=5, sd=0.3), lambda g: _dataset(g, N, S0_sim), TRUE, rng)
+    _within(cover, 0.87, ceiling=1.0)
 
 
 def test_more_robots_narrow_the_intervals_as_one_over_root_n():
@@ -168,17 +173,7 @@ def test_the_sensor_noises_intervals_hold_the_truth_about_ninety_percent_of_the_
     0.87-0.905; 6 robots: 0.84-0.85). (A variance's bootstrap covers less where the deviations
     are heavy-tailed: t on 5 dof, 0.78-0.84.)"""
     rng = np.random.default_rng(20261201 + robots)
-    model = _sensor_model(robots)
-    hits = {k: 0 for k in SENSOR_TRUE}
-    R = 300
-    for _ in range(R):
-        ci = E.noise_intervals(model, _sweeps(rng, robots), rng, boot=200)
-        assert set(ci) == set(SENSOR_TRUE)
-        for k, (lo, hi) in ci.items():
-            hits[k] += lo <= SENSOR_TRUE[k] <= hi
-    sd = np.sqrt(0.9 * 0.1 / R)
-    for k in SENSOR_TRUE:
-        assert floor - 3 * sd <= hits[k] / R <= 0.90 + 3 * sd, (k, hits[k] / R)
+    _within(_coverage(_sensor_model(robots), lambda g: _sweeps(g, robots), SENSOR_TRUE, rng), floor)
 
 
 def test_a_sensor_fitted_without_noise_states_an_interval_for_its_offsets_alone():
@@ -214,11 +209,4 @@ def test_the_clock_jitters_interval_holds_the_truth_about_ninety_percent_of_the_
     percentiles gained 2 points in a trial, not adopted). Without the timing part taken off, the
     interval misses the truth in nearly every dataset."""
     rng = np.random.default_rng(20261202 + robots)
-    model = _clock_model(robots)
-    R = 300
-    held = 0
-    for _ in range(R):
-        lo, hi = E.noise_intervals(model, _clocks(rng, robots), rng, boot=200)["clock_trial_sd"]
-        held += lo <= JITTER <= hi
-    sd = np.sqrt(0.9 * 0.1 / R)
-    assert floor - 3 * sd <= held / R <= 0.90 + 3 * sd, held / R
+    _within(_coverage(_clock_model(robots), lambda g: _clocks(g, robots), {"clock_trial_sd": JITTER}, rng), floor)
