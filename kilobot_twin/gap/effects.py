@@ -771,17 +771,16 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
 
     n = len(m.swarm)
 
-    def rep_stats(s):  # (M, 2): each replicate's within-robot variances of gain and offset
-        return np.stack([np.atleast_1d(within_var(s["gain"])), np.atleast_1d(within_var(s["offset"]))], -1)
-
     def stats(s):  # (2,), averaged over replicates for simulations
-        return rep_stats(s).mean(axis=0)
+        return np.array([np.mean(within_var(s["gain"])), np.mean(within_var(s["offset"]))])
 
-    reps = []  # each simulation's replicates, for the levels' intervals (noise_intervals)
+    reps = []  # each simulation's replicates (M, 2), for the levels' intervals (noise_intervals)
 
     def sim_stats(noise, spread):
-        reps.append(rep_stats(resim(m.with_traits(sensor_noise=np.full(n, noise), sensor_offset_trial_sd=np.full(n, spread)))))
-        return reps[-1].mean(axis=0)
+        s = resim(m.with_traits(sensor_noise=np.full(n, noise), sensor_offset_trial_sd=np.full(n, spread)))
+        g, o = np.atleast_1d(within_var(s["gain"])), np.atleast_1d(within_var(s["offset"]))
+        reps.append(np.stack([g, o], -1))
+        return np.array([np.mean(g), np.mean(o)])
 
     # The map is anchored at the floor, not at 0: without noise the rounding of a smooth sweep
     # is the same in every sweep, with noise it dithers, so the statistics jump between the two.
