@@ -71,7 +71,8 @@ def generate_launch_description():
     cfg = {k: LaunchConfiguration(k) for k in ARGUMENTS}
     world = Node(package="kilobot_twin", executable="world", name="world", output="screen",
                  parameters=[{"scenario": cfg["scenario"], "duration_s": cfg["duration"], "seed": cfg["seed"],
-                              "robots": cfg["robots"], "mode": cfg["mode"], "wait_for_nodes": "recorder"}])
+                              "robots": cfg["robots"], "mode": cfg["mode"],
+                              "wait_for_nodes": "recorder,analysis@cloud"}])
     return LaunchDescription(args + [
         SetEnvironmentVariable("FASTRTPS_DEFAULT_PROFILES_FILE",
                                EnvironmentVariable("FASTRTPS_DEFAULT_PROFILES_FILE", default_value=str(FASTDDS_PROFILES))),

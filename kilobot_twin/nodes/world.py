@@ -13,9 +13,10 @@ Publishes (node ``world``, private names):
 - ``/clock`` (rosgraph_msgs/Clock): simulated time.
 
 Start gate: the world waits until ``robots`` robots are on the graph and every node named in
-``wait_for_nodes`` (comma-separated, e.g. ``recorder,analysis``) subscribes to each robot's
+``wait_for_nodes`` (comma-separated, e.g. ``recorder,analysis@cloud``) subscribes to each robot's
 ``wait_topics`` (default ``pose,light,led,clock,robots``; ``robots`` is a batched swarm's cloud; a
-node that subscribes to a swarm's ``bundle`` counts as subscribed to its robots' data topics) and
+node that subscribes to a swarm's ``bundle`` counts as subscribed to its robots' data topics, and
+so does one named ``name@cloud`` that subscribes to the swarm's cloud, from which it reads them) and
 to every ``/analysis/`` topic on the graph, and until the writers of those topics (or of the
 swarm's bundle or cloud that carries a robot's) have matched as many readers as the world sees
 on them, as their processes report on ``/_kilobot_twin/matched`` (at most ``match_timeout_s``,
@@ -48,6 +49,7 @@ from sensor_msgs.msg import Image, PointCloud2
 from std_msgs.msg import String, UInt64
 
 from ..core.light import raster as light_raster
+from ..errors import ConfigError
 from ..core.scenario import Scenario
 from ..recording import cdr, topics
 from ..ros import convert, params, qos
@@ -71,7 +73,15 @@ class WorldNode(Node):
         self.seed = params.integer(self, "seed", 0, minimum=0)
         self.run = params.integer(self, "run", 0, minimum=0)
         self.n_robots = params.integer(self, "robots", 1, minimum=0)
-        self.wait_for_nodes = [s for s in params.text(self, "wait_for_nodes", "").split(",") if s.strip()]
+        # "name" awaits a node on each robot's topics (or its swarm's bundle); "name@cloud" takes
+        # a swarm's cloud for its robots' data, as the analysis node reads them
+        awaited = [s.strip() for s in params.text(self, "wait_for_nodes", "").split(",") if s.strip()]
+        for s in awaited:
+            if "@" in s and not s.endswith("@cloud"):
+                raise ConfigError("wait_for_nodes", f"unknown reading {s!r}", "write a node name, or name@cloud for a "
+                                  "node that reads a swarm's robots from its cloud, e.g. -p wait_for_nodes:=recorder,analysis@cloud")
+        self.wait_for_nodes = [s.split("@")[0] for s in awaited]
+        self.cloud_readers = {s.split("@")[0] for s in awaited if s.endswith("@cloud")}
         self.wait_topics = [s.strip() for s in params.text(self, "wait_topics", ",".join(DATA_TOPICS + SWARM_TOPICS)).split(",")
                             if s.strip()]
         self.settle_s = params.number(self, "settle_s", 0.5, minimum=0.0)
@@ -249,6 +259,10 @@ class WorldNode(Node):
         # (the recorder: the same bytes in one message per step).
         bundle_takers = {base: {i.node_name for i in self.get_subscriptions_info_by_topic(topics.swarm_bundle_topic(base))}
                          for base in self.swarms}
+        # and by a node awaited as reading the swarm's cloud that subscribes to it (the analysis)
+        for base in self.swarms if self.cloud_readers else ():
+            bundle_takers[base] |= self.cloud_readers & {
+                i.node_name for i in self.get_subscriptions_info_by_topic(topics.swarm_cloud_topic(base))}
         swarm_of = {rid: base for base, ids in self.swarms.items() for rid in ids or ()}
         # The analysis node's topics too (for every awaited node but the analysis itself): its
         # first values go out with the first step.

@@ -174,7 +174,7 @@ def run_twin(scenario: str = "phototaxis", robots: int = 10, duration: float = 2
         "recorder": _node_cmd("recorder", out=str(bag)),
         "analysis": _node_cmd("analysis"),
         "world": _node_cmd("world", **world_scenario, duration_s=float(duration), seed=seed, robots=robots, mode=mode,
-                           wait_for_nodes="recorder", stats_file=str(world_stats)),
+                           wait_for_nodes="recorder,analysis@cloud", stats_file=str(world_stats)),
     }
     for k, (name, stats) in enumerate(zip(swarm_names, swarm_stats)):
         # Swarm k of K owns the k-th block of robot ids; its own node name keeps its topics apart.

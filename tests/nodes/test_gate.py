@@ -5,9 +5,13 @@ import subprocess
 import sys
 import time
 
+import pytest
 from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
+from std_msgs.msg import Float64
 
+from kilobot_twin.errors import ConfigError
+from kilobot_twin.nodes.analysis import AnalysisNode
 from kilobot_twin.nodes.swarm import SwarmNode
 from kilobot_twin.nodes.world import WorldNode
 from kilobot_twin.ros import latched, qos
@@ -39,6 +43,45 @@ def test_the_gate_names_what_is_missing_in_the_order_it_comes():
         assert g.spin_until(lambda: world._gate_waits_for() == "", 10), world._gate_waits_for()
         assert g.spin_until(lambda: world.finished.done(), 30)
         assert not world._match_warned  # the writers' reports came, and said they had matched
+
+
+class TimeListener(Node):
+    """The analysis node's evaluation times as they go out."""
+
+    def __init__(self, context):
+        super().__init__("listener", context=context)
+        self.times = []
+        self.create_subscription(Float64, "/analysis/time_s", lambda m: self.times.append(m.data), qos.DATA)
+
+
+def test_the_gate_waits_for_an_analysis_that_reads_the_swarms_cloud():
+    """`kilobot-twin run` starts the analysis beside the world. Under load its process came up
+    after a 4 s lockstep run had ended (0.15 s of wall time), and the bag held no /analysis topic
+    (tests/nodes/test_analysis_wire.py, once in a full run). Awaited as ``analysis@cloud``, the
+    world holds the start until the analysis subscribes to the batched swarm's cloud, from which it
+    reads the robots (not to their own topics, which a plain awaited node must take), and the
+    analysis's first values are those of the first step."""
+    with Graph() as g:
+        world = g.add(WorldNode(context=g.context, parameter_overrides=overrides(
+            scenario="random_walk", duration_s=1.0, robots=N, wait_for_nodes="analysis@cloud", settle_s=0.2,
+            linger_s=0.0, gate_report_s=0.0)))
+        listener = g.add(TimeListener(g.context))
+        swarm = g.add(SwarmNode(context=g.context, parameter_overrides=overrides(robots=N, batched=True)))
+        assert g.spin_until(lambda: swarm.world_ready.done(), 10)
+        swarm.create_robots(g.executor)
+        assert g.spin_until(lambda: world._gate_waits_for().startswith("analysis to subscribe to /kilobot_0/"), 10), \
+            world._gate_waits_for()
+        g.spin_until(lambda: False, 1.0)
+        assert world.pacer.step < 0  # not started without it
+        g.add(AnalysisNode(context=g.context, parameter_overrides=overrides(period_s=0.5)))
+        assert g.spin_until(lambda: world.finished.done(), 30), world._gate_waits_for()
+        assert g.spin_until(lambda: len(listener.times) == 3, 5), listener.times
+        assert listener.times == [0.0, 0.5, 1.0]
+
+
+def test_an_awaited_node_read_in_an_unknown_way_is_one_clear_error():
+    with Graph() as g, pytest.raises(ConfigError, match="wait_for_nodes"):
+        g.add(WorldNode(context=g.context, parameter_overrides=overrides(robots=N, wait_for_nodes="analysis@bundle")))
 
 
 class UnservedCollector(Node):
