@@ -6,11 +6,14 @@ The analysis node publishes ``/analysis/time_s`` and then every metric once per 
 so the k-th message of each metric topic belongs to the k-th time.
 """
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
 from ..ros.test_bag import rosbags_messages
-from .test_run import cli
+from .test_run import ENV, ROOT, cli
 
 LIGHT = (0.25, -0.15)  # off the origin: a distance measured to the origin fails
 CELL_M, ARENA_M = 0.02, 4.0
@@ -110,3 +113,31 @@ def test_live_metrics_equal_a_recomputation_from_the_robot_topics(kind, tmp_path
     np.testing.assert_allclose(t, [s / 1e9 for s in stamps], atol=1e-9)
     np.testing.assert_array_equal(v, got["mean_distance_to_light_m"])
     assert ("order_parameter" in rec.recorded_metrics) == (kind == "blink") and "time_s" not in rec.recorded_metrics
+
+
+SLOW_START = """import time
+try:
+    if b"kilobot_twin.nodes.analysis" in open("/proc/self/cmdline", "rb").read():
+        time.sleep(4.0)
+except OSError:
+    pass
+"""
+
+
+def test_an_analysis_process_slow_to_start_still_has_every_value_in_the_bag(tmp_path):
+    """Under load the analysis process of a `run` came up after a 4 s lockstep run had ended
+    (0.15 s of wall time): the bag held no /analysis topic. Here its interpreter sleeps 4 s
+    before it starts (a sitecustomize on its path); the world waits for it (``analysis@cloud``)
+    and the bag holds its values from t = 0. On e3cfdc8's launcher the same run's bag held 36
+    topics and none of the analysis."""
+    slow = tmp_path / "slow"
+    slow.mkdir()
+    (slow / "sitecustomize.py").write_text(SLOW_START)
+    out = tmp_path / "bags" / "slow"
+    env = dict(ENV, PYTHONPATH=str(slow) + ":" + ENV["PYTHONPATH"])
+    res = subprocess.run([sys.executable, "-m", "kilobot_twin", "run", "--scenario", "blink", "--robots", "6",
+                          "--duration", "4", "--seed", "3", "--out", str(out)],
+                         capture_output=True, text=True, env=env, cwd=ROOT, timeout=120)
+    assert res.returncode == 0, res.stdout + res.stderr
+    stamps = [round(m.data * 1e9) for t, m in rosbags_messages(out) if t == "/analysis/time_s"]
+    assert stamps == [k * 10**9 for k in range(5)]
