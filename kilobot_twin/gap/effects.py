@@ -44,8 +44,8 @@ class TwinModel:
     #: noises), its ``intercept``, each simulation's ``replicates`` and the ``probe_levels``, the
     #: readings' spreads ``v_d`` and ``v_t`` where the fit combined them, and ``bias_est_var``; for
     #: light sweeps (:func:`fit_sensor_noise`) ``sensor_map``, ``sensor_intercept``,
-    #: ``sensor_weights``, ``sensor_replicates``, ``sensor_probes`` and ``sensor_quiet`` (fitted
-    #: without reading noise); for blinks (:func:`_jitter_at_its_timing`) ``clock_timing`` (the
+    #: ``sensor_weights``, ``sensor_replicates`` and ``sensor_probes`` (a one-column map: fitted
+    #: without reading noise, the offsets' column alone); for blinks (:func:`_jitter_at_its_timing`) ``clock_timing`` (the
     #: part of the rates' spread put down to timing to frames), ``clock_keep``, ``clock_clip`` and
     #: ``clock_own``
     noise_map: dict = field(default_factory=dict)
@@ -822,8 +822,8 @@ def fit_sensor_noise(m: TwinModel, meas: dict, resim, like: TwinModel | None = N
         (spread0,), _ = nnls((col * w)[:, None], (data - z0) * w)
         if np.sqrt(spread0) >= ROUNDING_DRAWN_ANEW:
             quiet = m.with_traits(sensor_noise=np.zeros(n), sensor_offset_trial_sd=np.full(n, np.sqrt(spread0)))
-            quiet.noise_map.update(sensor_map=np.column_stack([A[:, 0], col]), sensor_intercept=z0, sensor_weights=w,
-                                   sensor_quiet=True, sensor_replicates=reps[3:5], sensor_probes=[po**2])
+            quiet.noise_map.update(sensor_map=col[:, None], sensor_intercept=z0, sensor_weights=w,
+                                   sensor_replicates=reps[3:5], sensor_probes=[po**2])
             if like is not None:
                 return quiet
             return quiet if _log_misfit(stats(resim(quiet)), data) <= _log_misfit(stats(resim(dithered)), data) else dithered
@@ -967,7 +967,7 @@ def noise_intervals(model: TwinModel, meas: dict, rng: np.random.Generator, boot
     """Intervals for the motion base's noise levels: a bootstrap over robots of the data's
     statistics (robots are the units the data sample), each replicate solved as the fit solved
     them (:func:`solve_noise_vars`) on the fit's map and intercept, whose simulations' replicates
-    are resampled alongside (:func:`_resampled_maps`), and the trial-to-trial bias spread read as
+    are resampled alongside (:func:`_resampled_map`), and the trial-to-trial bias spread read as
     the fit reads it (less what measurement and white noise make). Left out: the error of the
     tracking noise fitted where the data are read, and any way another world's noise differs
     from the twin's kind.
@@ -995,11 +995,12 @@ def noise_intervals(model: TwinModel, meas: dict, rng: np.random.Generator, boot
         return spreads["v_d"], spreads["v_t"]
 
     idx = rng.integers(0, n, (boot, n))
-    take = {k: np.moveaxis(np.asarray(meas[k], dtype=float)[:, idx], 1, 0)
-            for k in ("diffusion", "speed", "speed_diffusion", "turn_rate")}  # (boot, K, n)
+    take = {k: _robots_resampled(meas[k], idx) for k in ("diffusion", "speed", "speed_diffusion", "turn_rate")}
     stats = _noise_stats(take)
-    maps, s0s = _resampled_maps(nm, rng, boot) if "replicates" in nm else (np.broadcast_to(A, (boot,) + A.shape),
-                                                                            np.broadcast_to(s0, (boot, 4)))
+    if "replicates" in nm:
+        maps, s0s = _resampled_map(nm["replicates"], np.square(nm["probe_levels"]), rng, boot, _replicate_centre)
+    else:  # a map given without its replicates
+        maps, s0s = np.broadcast_to(A, (boot,) + A.shape), np.broadcast_to(s0, (boot, 4))
     var = np.array([solve_noise_vars(a, t - c, spreads_at) if np.all(np.isfinite(t - c)) else np.full(3, np.nan)
                     for a, t, c in zip(maps, stats, s0s)])
     q = _expanded_percentiles(n, level)
@@ -1015,23 +1016,21 @@ def noise_intervals(model: TwinModel, meas: dict, rng: np.random.Generator, boot
     return out
 
 
-def _resampled_maps(nm: dict, rng: np.random.Generator, boot: int):
-    """The noise map and its intercept (:func:`fit_noise_levels`) from the simulations'
-    replicates resampled, ``boot`` times: (boot, 4, 4) maps and (boot, 4) intercepts, so that
-    the levels' intervals carry the map's Monte Carlo error beside the robots' scatter (the
-    intercept's matters where tracking noise makes most of the diffusion). Centres as
-    :func:`_replicate_centre` takes them."""
-    centres = []
-    for r in nm["replicates"]:
-        r = np.asarray(r, dtype=float)
-        x = r[rng.integers(0, len(r), (boot, len(r)))]  # (boot, M, 4)
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            c = np.nanmean(x, axis=1)
-            c[:, 3] = np.nanmedian(x[:, :, 3], axis=1)
-        centres.append(c)
-    cols = [(centres[j + 1] - centres[0]) / lv**2 for j, lv in enumerate(nm["probe_levels"])]
-    return np.stack(cols, axis=-1), centres[0]
+def _resampled_map(replicates, scales, rng: np.random.Generator, boot: int, centre):
+    """A map and its intercept read off simulations whose replicates are resampled, ``boot``
+    times, so that intervals carry the map's Monte Carlo error beside the robots' scatter (the
+    intercept's matters where tracking noise makes most of the diffusion). ``replicates``: the
+    intercept's simulation, then one per column (each (M, k)); a column is its simulation's
+    centre less the intercept's over its ``scales`` entry; ``centre`` takes (boot, M, k) to
+    (boot, k). Returns (boot, k, columns) maps and (boot, k) intercepts."""
+    c = [centre(np.asarray(r, dtype=float)[rng.integers(0, len(r), (boot, len(r)))]) for r in replicates]
+    return np.stack([(cj - c[0]) / d for cj, d in zip(c[1:], scales)], -1), c[0]
+
+
+def _robots_resampled(x, idx):
+    """(K, N) values per (trial, robot) -> (boot, K, n): each resample's robots ``idx`` (boot, n),
+    their trials kept together."""
+    return np.moveaxis(np.asarray(x)[:, idx], 1, 0)
 
 
 def _expanded_percentiles(n: int, level: float) -> list:
@@ -1054,21 +1053,17 @@ def _sensor_intervals(nm: dict, meas: dict, rng: np.random.Generator, boot: int,
     simulation, not estimated), so only its offset spread has an interval."""
     from scipy.optimize import nnls
 
-    quiet = bool(nm.get("sensor_quiet", False))
+    A = np.asarray(nm["sensor_map"])
+    quiet = A.shape[1] == 1  # the offsets' column alone: fitted without reading noise
     n = meas["gain"].shape[-1]
     idx = rng.integers(0, n, (boot, n))
-    st = np.stack([within_var(np.moveaxis(np.asarray(meas[k], dtype=float)[:, idx], 1, 0)) for k in ("gain", "offset")], -1)
+    st = np.stack([within_var(_robots_resampled(meas[k], idx)) for k in ("gain", "offset")], -1)
     w = np.asarray(nm["sensor_weights"])  # the fit's row scaling
     q = _expanded_percentiles(n, level)
-    # the map and intercept from the simulations' replicates resampled (their Monte Carlo error)
     if "sensor_replicates" in nm:
-        centres = [np.asarray(r)[rng.integers(0, len(r), (boot, len(r)))].mean(axis=1) for r in nm["sensor_replicates"]]
-        cols = np.stack([(c - centres[0]) / d for c, d in zip(centres[1:], nm["sensor_probes"])], -1)  # (boot, 2, k)
-        r0s = centres[0]
+        cols, r0s = _resampled_map(nm["sensor_replicates"], nm["sensor_probes"], rng, boot, lambda x: x.mean(axis=-2))
     else:  # a map given without its replicates
-        A = np.asarray(nm["sensor_map"])
-        cols = np.broadcast_to(A[:, 1:] if quiet else A, (boot, 2, 1 if quiet else 2))
-        r0s = np.broadcast_to(np.asarray(nm["sensor_intercept"]), (boot, 2))
+        cols, r0s = np.broadcast_to(A, (boot,) + A.shape), np.broadcast_to(np.asarray(nm["sensor_intercept"]), (boot, 2))
     if quiet:
         spread = np.array([nnls(a * w[:, None], (t - c) * w)[0][0] for a, t, c in zip(cols, st, r0s)])
         return {"sensor_offset_trial_sd": [float(x) for x in np.sqrt(np.percentile(spread, q))]}
@@ -1084,9 +1079,8 @@ def _clock_intervals(nm: dict, meas: dict, rng: np.random.Generator, boot: int, 
     rate = np.asarray(meas["toggle_rate"], dtype=float)
     n = rate.shape[-1]
     idx = rng.integers(0, n, (boot, n))
-    keep = np.moveaxis(np.asarray(nm["clock_keep"])[:, idx], 1, 0)
     spread = _spread_own if nm["clock_own"] else _spread_all
-    v = spread(np.moveaxis(rate[:, idx], 1, 0), keep, nm["clock_clip"]) - nm["clock_timing"]
+    v = spread(_robots_resampled(rate, idx), _robots_resampled(nm["clock_keep"], idx), nm["clock_clip"]) - nm["clock_timing"]
     q = _expanded_percentiles(n, level)
     return {"clock_trial_sd": [float(x) for x in np.sqrt(np.maximum(np.nanpercentile(v, q), 0.0))]}
 
@@ -1394,7 +1388,7 @@ def _noise_stats(s):
 
 
 def _replicate_centre(st):
-    """The simulations' value of each :func:`_noise_stats` statistic, from its replicates (M, 4):
+    """The simulations' value of each :func:`_noise_stats` statistic, from its replicates (..., M, 4):
     their mean, but the median for the turn rates' variance. Turn rates come from unwrapped
     headings, which at heavy tracking noise and low speed slip by 2 pi in a trial now and then
     (2 pi / 60 s: 30 sds of a turn rate); the variance of a replicate that holds one is many times
@@ -1402,9 +1396,10 @@ def _replicate_centre(st):
     noise's bound at a third of what the diffusion showed: independent world, tau 5 s, seed
     3000). The median of a variance over dozens of robot-trials is within a few per cent of its
     mean, below it: the bound is looser by as much."""
-    with np.errstate(all="ignore"):
-        c = np.nanmean(st, axis=0)
-        c[3] = np.nanmedian(st[:, 3])
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        c = np.nanmean(st, axis=-2)
+        c[..., 3] = np.nanmedian(st[..., 3], axis=-1)
     return c
 
 

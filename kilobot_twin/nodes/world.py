@@ -49,8 +49,8 @@ from sensor_msgs.msg import Image, PointCloud2
 from std_msgs.msg import String, UInt64
 
 from ..core.light import raster as light_raster
-from ..errors import ConfigError
 from ..core.scenario import Scenario
+from ..errors import ConfigError
 from ..recording import cdr, topics
 from ..ros import convert, params, qos
 from ..ros.executors import run_node, spin_node
