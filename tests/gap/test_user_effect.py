@@ -2,6 +2,7 @@
 example of the docs, a tilted floor, on a world the twin was not built from; and what a file that
 is not a working effect gets (one line, exit 2, nothing written)."""
 
+import functools
 import importlib.util
 import json
 from pathlib import Path
@@ -109,9 +110,10 @@ def test_a_users_effect_is_not_scored_on_null_data_and_its_detectable_size_is_st
     assert "- floor_tilt (yours): detected %.3g (floor slope A" % mde["detection_size"] in (out / "report.md").read_text()
 
 
+@functools.lru_cache(maxsize=None)
 def _example_and_base(level):
     """The example module, and the level dataset's conditions, summaries and fitted base, as the
-    workflow's round 0 has them."""
+    workflow's round 0 has them. Fitted once per test process (seconds; nothing here changes them)."""
     from kilobot_twin.gap import effects as E
     from kilobot_twin.gap import workflow as W
     from kilobot_twin.gap.model import measured_summaries
@@ -125,6 +127,18 @@ def _example_and_base(level):
     base = W._Fitter(cond, meas, E.nominal_model("motion", cond.robot_ids, cond.forward_speed_m_s), W.GapSettings(),
                      True).fit((), list(range(cond.trials)))
     return ex, cond, meas, base
+
+
+@functools.lru_cache(maxsize=None)
+def _simulated(level, m, seed):
+    """The level dataset's base simulated m times (the pool of 960 takes 7 s; shared by the cases below)."""
+    from kilobot_twin.gap.model import simulate
+
+    _, cond, _, base = _example_and_base(level)
+    sims = simulate(cond, base, m, seed)
+    for v in sims.values():  # shared between cases: a function that wrote into them would raise
+        v.setflags(write=False)
+    return sims
 
 
 @pytest.mark.parametrize("m, lowest", [pytest.param(120, 0.005, marks=pytest.mark.slow), (12, 0.005), (120, 0.05)])
@@ -151,12 +165,11 @@ def test_the_tilt_stated_is_where_the_non_central_f_test_has_80_percent_power(le
     from scipy import optimize, stats
 
     from kilobot_twin.gap import workflow as W
-    from kilobot_twin.gap.model import simulate
 
     ex, cond, meas, base = _example_and_base(level)
     gs = W.GapSettings()
-    null = {k: v[:m] for k, v in simulate(cond, base, gs.m_null, 11).items()}
-    pool = simulate(cond, base, 960, 12)
+    null = {k: v[:m] for k, v in _simulated(level, gs.m_null, 11).items()}
+    pool = _simulated(level, 960, 12)
     reps = W.POWER_REPS if m > 20 else 4 * W.POWER_REPS  # a finer reading where the two thresholds are compared
     tilt = type("Tilt", (ex.FloorTilt,), {"size_range": (lowest, 0.5)})()
     found = W.simulated_detection("motion", cond, base, null, gs.alpha, tilt, seed=5, reps=reps, pool=pool)

@@ -9,8 +9,9 @@ import json
 import numpy as np
 import pytest
 
+from kilobot_twin.core import sim
 from kilobot_twin.core.traits import load_swarm
-from kilobot_twin.gap.synth import synth
+from kilobot_twin.gap.synth import motion_scenario, synth
 from kilobot_twin.gap.workflow import GapSettings, run_gap
 from . import benchmark
 
@@ -35,6 +36,9 @@ def test_heading_bias_named_recovered_and_gap_shrinks(tmp_path):
     tol = _per_robot_tolerance(tmp_path / "motion_heading_bias", "turn_rate", 4) * 0.025 / (0.06 * 48 / 255)
     assert np.all(np.abs(fitted.heading_bias - true) <= tol), (fitted.heading_bias - true, tol)
     assert abs(np.polyfit(true, fitted.heading_bias, 1)[0] - 1) <= 0.1
+    # The updated model loads into the batch engine and runs there (the same gap run: each run costs seconds).
+    res = sim.simulate(motion_scenario(10.0, 0.1), fitted, 0)
+    assert res.summary["x"].shape == (1, len(fitted))
     assert rep["gap_shrink"]["value"] >= 0.8 and rep["gap_shrink"]["ci95"][0] > 0
     sh = rep["gap_shrink"]  # the gap removed, as the report's own numbers before and after make it
     assert sh["removed"] == pytest.approx(sh["before"] - sh["after"]) and 0 < sh["removed_ci95"][0] < sh["removed"]
@@ -182,16 +186,6 @@ def test_sensor_and_clock_effects(tmp_path, kind, hidden, trait):
     lo, hi = sec["nuisance_ci90"]["clock_trial_sd"]
     assert 0 <= lo <= hi and "clock_trial_sd %.3g (90 %% CI %.3g .. %.3g)" % (sec["nuisances"]["clock_trial_sd"], lo, hi) \
         in (tmp_path / "out" / "report.md").read_text()
-
-
-def test_updated_model_loads_into_the_batch_engine(tmp_path):
-    from kilobot_twin.core import sim
-    from kilobot_twin.gap.synth import motion_scenario
-
-    _, rep = run(tmp_path, "motion", "heading_bias")
-    sw = load_swarm(rep["model"])
-    res = sim.simulate(motion_scenario(10.0, 0.1), sw, 0)
-    assert res.summary["x"].shape == (1, len(sw))
 
 
 @pytest.mark.slow
