@@ -92,15 +92,24 @@ def _where(s: dict) -> list:
     return lines + [""]
 
 
+def _more_data(v: dict) -> str:
+    """The detection sizes of more robots or trials (workflow.other_designs), as one clause."""
+    d = v.get("at_other_designs")
+    if not d:
+        return ""
+    return ("; detected with more data (the F test's theory, scaled from this dataset's size): "
+            + ", ".join(f"{x['robots']} robots x {x['trials']} trials {x['detection_size']:.3g}" for x in d))
+
+
 def _can_see(mde: dict) -> list:
     """report.md's lines for ``minimum_detectable``: each effect's size named and detected, or
-    why none is stated."""
+    why none is stated, and the detection size with more robots or trials."""
     lines = []
     for eff, v in mde.items():
         if "why_none" in v:  # no size named for these data (workflow.none_stated), and why
             det = v.get("detection_size")
             lines.append(f"- {eff}: none stated: {v['why_none']}"
-                         + (f"; detected {det:.3g} ({v['unit']})" if det is not None else ""))
+                         + (f"; detected {det:.3g} ({v['unit']})" if det is not None else "") + _more_data(v))
             continue
         if v.get("by") == "simulation":  # an effect of your own (workflow.simulated_detection)
             detected = (f"none up to {v['searched_to']:.3g}" if v["detection_size"] is None
@@ -113,7 +122,7 @@ def _can_see(mde: dict) -> list:
         if "best_power" in v:  # how near the search came (none at all: no size to point to)
             named += (f" (at most {100 * v['best_power']:.0f} % power, at {v['best_at']:.3g})" if v["best_power"] > 0
                       else " (named at none of the sizes searched)")
-        lines.append(f"- {eff}: named {named}, detected {detected} ({v['unit']})")
+        lines.append(f"- {eff}: named {named}, detected {detected} ({v['unit']})" + _more_data(v))
     return lines
 
 

@@ -1593,9 +1593,66 @@ def minimum_detectable(kind: str, meas: dict, null: dict, trials: int, alpha: fl
             out[effect] |= {"best_power": float(pw[j]), "best_at": float(taus[j]) * scale}
         if two:
             out[effect]["why_none"] = two
+        if noise is None and np.isfinite(tau_flag):  # robots that differ in noise differ by factors: not an F's spread
+            robots = int(seen.any(axis=0).sum())
+            out[effect]["at_other_designs"] = other_designs(kind, tau_flag * scale, robots, trials, drift, alpha, power)
         if effect == "heading_bias" and named is not None:  # also in the twin's units, b = -omega L / v
             v = float(np.nanmean(null["speed"]))
             out[effect]["heading_bias_sd"] = float(abs(heading_bias_from_turn_rate(named, v)))
+    return out
+
+
+#: The designs a report scales each detection size to (:func:`other_designs`): a trial or two
+#: more, twice the trials, twice the robots.
+OTHER_DESIGNS = ((0, 1), (0, 2), (0, "x2"), ("x2", 0))
+
+
+def f_test_size(robots: int, trials: int, drift: bool, alpha: float, power: float = 0.8) -> float:
+    """The spread that the exact F test at one-sided level ``alpha`` flags with ``power``, in units
+    of the within-robot sd of one trial's summary (for a drift: of its scatter about the robot's
+    line), for robots whose own spread (ddof 1) is that: between robots, F(N - 1, N (K - 1)) with
+    noncentrality K (N - 1) tau^2 / s_w^2; for drifts (each robot's slope over its trials), F(N,
+    N (K - 2)) with S_kk (N - 1) tau^2 / s_w^2, S_kk = K (K^2 - 1) / 12 (the trend statistic of
+    :func:`detect`, whose drifts are lines through each robot's own mean)."""
+    from scipy import optimize
+    from scipy import stats as st
+
+    if drift:
+        d1, d2, per = robots, robots * (trials - 2), trials * (trials**2 - 1) / 12.0
+    else:
+        d1, d2, per = robots - 1, robots * (trials - 1), float(trials)
+    crit = st.f.isf(alpha, d1, d2)
+    hi = 1.0
+    while st.ncf.sf(crit, d1, d2, hi) < power:
+        hi *= 2.0
+    lam = optimize.brentq(lambda lam: st.ncf.sf(crit, d1, d2, lam) - power, 0.0, hi, xtol=1e-10 * hi)
+    return float(np.sqrt(lam / (per * (robots - 1))))
+
+
+def other_designs(kind: str, detected: float, robots: int, trials: int, drift: bool, alpha: float,
+                  power: float = 0.8) -> list:
+    """The detection size at each of :data:`OTHER_DESIGNS`, scaled from this dataset's own
+    (``detected``, emulated on its robots and trials) by the exact F test's size at both designs:
+    robots and trials like these, more of them. The F test is what :func:`detect` runs on a
+    summary, at the family's level, which counts the trend statistic once a design has 3 trials;
+    the within-robot variance of a summary does not depend on how many trials or robots there
+    are, so the ratio carries this dataset's noise, gaps and units over."""
+    def level(k):  # the family's level at k trials: count the statistics :func:`statistics` makes there
+        probe = np.random.default_rng(0).normal(1.0, 0.1, (k, 4))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return alpha / len(statistics(kind, {c: probe for c in (*COMPONENTS[kind], "heading")}, k))
+
+    here = f_test_size(robots, trials, drift, level(trials), power)
+    out, seen = [], set()
+    for dn, dk in OTHER_DESIGNS:
+        n = robots * 2 if dn == "x2" else robots + dn
+        k = trials * 2 if dk == "x2" else trials + dk
+        if (n, k) in seen:  # 2 trials: two more is twice as many
+            continue
+        seen.add((n, k))
+        out.append({"robots": int(n), "trials": int(k),
+                    "detection_size": float(detected * f_test_size(n, k, drift, level(k), power) / here)})
     return out
 
 

@@ -83,6 +83,14 @@ def test_heading_bias_named_recovered_and_gap_shrinks(tmp_path):
             named += (" (at most %.0f %% power, at %.3g)" % (100 * v["best_power"], v["best_at"]) if v["best_power"] > 0
                       else " (named at none of the sizes searched)")
         assert f"- {eff}: named {named}, detected {detected} (" in md
+        # and with more robots or trials (tests/gap/test_designs.py checks the scale): smaller, and said
+        if eff != "motion_noise" and v["detection_size"] is not None:
+            more = v["at_other_designs"]
+            assert [x["robots"] for x in more] == [len(fitted)] * 3 + [2 * len(fitted)]
+            assert all(x["detection_size"] < v["detection_size"] for x in more)
+            assert "%d robots x %d trials %.3g" % (more[0]["robots"], more[0]["trials"], more[0]["detection_size"]) in md
+        else:
+            assert "at_other_designs" not in v
     assert (tmp_path / "out" / "report.md").is_file() and (tmp_path / "out" / "gap_0.png").is_file()
     # Where the gap is: the turn rates' per-track part, and the report's table row says so.
     by = doc["datasets"][0]["gap_by_part"]
