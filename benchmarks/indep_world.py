@@ -337,11 +337,13 @@ def draw_program(rng: np.random.Generator | None) -> dict:
 
 
 def generate(kind: str, hidden, out, seed: int = 0, nuisance_scale: float | None = None, effect_scale: float = 1.0,
-             fixed_shape: bool = False, program: dict | str | None = None, nuisance: dict | None = None) -> dict:
+             fixed_shape: bool = False, program: dict | str | None = None, nuisance: dict | None = None,
+             design: tuple | None = None) -> dict:
     """Write one dataset to ``out`` (meta.yaml, observations.csv, truth.json); return the truth.
     ``program``: the commanded speed and LED program (:func:`draw_program`'s keys), ``"random"``
     to draw them per dataset, or None for the Kilobot defaults. ``nuisance``: levels that replace
-    the drawn ones (keys of :data:`NOMINAL`), the rest drawn as before."""
+    the drawn ones (keys of :data:`NOMINAL`), the rest drawn as before. ``design``: (robots,
+    trials) in place of the fixed shape's (with ``fixed_shape``: trials of its length, none missed)."""
     hidden = [h for h in (hidden.split(",") if isinstance(hidden, str) else hidden) if h and h != "none"]
     for h in hidden:
         if h not in EFFECTS[kind]:
@@ -351,6 +353,10 @@ def generate(kind: str, hidden, out, seed: int = 0, nuisance_scale: float | None
     s_shape, s_nuis, s_world, s_prog, s_track, s_offset = (np.random.default_rng(s) for s in root.spawn(6))
     program = draw_program(s_prog if program == "random" else None) | (program if isinstance(program, dict) else {})
     shape = draw_shape(s_shape, kind, fixed_shape)
+    if design is not None:
+        if not fixed_shape:
+            raise ValueError("design: only with fixed_shape (trials of one length, nobody missing)")
+        shape |= {"robots": int(design[0]), "trials": int(design[1]), "lengths_s": shape["lengths_s"][:1] * int(design[1])}
     nz = draw_nuisance(s_nuis, nuisance_scale)
     for k, v in (nuisance or {}).items():
         if k not in NOMINAL:
