@@ -32,7 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from eval_gap import realised_sizes  # noqa: E402  (the effects' sizes as the evaluations read them)
+from eval_gap import realised_sizes, scale_to_size  # noqa: E402  (the effects' sizes as the evaluations set them)
 
 #: effect -> (kind, the signal whose flag is its detection)
 EFFECTS = {"heading_bias": ("motion", "turn_rate:between_robots"), "bias_drift": ("motion", "turn_rate:trial_trend"),
@@ -60,13 +60,11 @@ def one(effect: str, design: tuple, seed: int, nuisance_scale: float) -> dict:
         stated = next((x for x in own + mde.get("at_other_designs", []) if (x["robots"], x["trials"]) == design), None)
         if stated is None:
             return {"seed": seed, "skipped": f"no size stated for {design[0]} x {design[1]}"}
-        scale = 1.0
-        for _ in range(3):  # the effect's realised spread over the robots, set to the size stated
-            size = realised_sizes(iw.generate(kind, [effect], d / "ds", seed=seed, nuisance_scale=nuisance_scale,
-                                              effect_scale=scale, fixed_shape=True, design=design))[effect]
-            scale *= stated["detection_size"] / max(size, 1e-300)
-        truth = iw.generate(kind, [effect], d / "ds", seed=seed, nuisance_scale=nuisance_scale, effect_scale=scale,
-                            fixed_shape=True, design=design)
+        def write(scale):
+            return iw.generate(kind, [effect], d / "ds", seed=seed, nuisance_scale=nuisance_scale, effect_scale=scale,
+                               fixed_shape=True, design=design)
+
+        truth = write(scale_to_size(write, effect, stated["detection_size"]))  # its spread over the robots: the size stated
         rep = _gap(d / "ds", d / "gap", seed)
     flagged = {x["signal"] for x in rep["disagreements"] if x["round"] == 0}
     return {"seed": seed, "here": mde["detection_size"], "stated": stated["detection_size"], "size": realised_sizes(truth)[effect],

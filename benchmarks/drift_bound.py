@@ -36,7 +36,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from kilobot_twin.gap.model import measured_summaries
-from kilobot_twin.gap.workflow import GapSettings, about_lines, statistics
+from kilobot_twin.gap.workflow import GapSettings, about_lines, f_test_size, statistics
 from kilobot_twin.recording import measured
 
 EARLIER_DRIFT = 0.0045  # rad/s per trial, the earlier gap issue's drift
@@ -50,21 +50,13 @@ def _indep_world():
     return mod
 
 
-def ratio_for_power(N: int, dof: int | None, alpha: float, power: float = POWER) -> float:
-    """The noncentrality lambda at which the test (chi^2 on N with sigma known, dof None; else F
-    on (N, dof)) at level alpha has the power."""
-    if dof is None:
-        crit = stats.chi2.isf(alpha, N)
-        f = lambda lam: stats.ncx2.sf(crit, N, lam) - power  # noqa: E731
-    else:
-        crit = stats.f.isf(alpha, N, dof)
-        f = lambda lam: stats.ncf.sf(crit, N, dof, lam) - power  # noqa: E731
-    return float(optimize.brentq(f, 1e-6, 1e4))
-
-
-def drift_bound(N: int, dof: int | None, skk: float, alpha: float) -> float:
-    """The drift sd d (in units of sigma_t) the test flags with 80 % power."""
-    return float(np.sqrt(ratio_for_power(N, dof, alpha) / (skk * (N - 1))))
+def known_sigma_size(N: int, skk: float, alpha: float, power: float = POWER) -> float:
+    """The drift sd d (in units of sigma_t) that the chi^2 test with sigma_t known flags with
+    ``power``: noncentrality lambda = S_kk (N - 1) d^2 on N dof. (Estimated from the trials, the
+    F test's size is ``workflow.f_test_size``, which the report scales its designs by.)"""
+    crit = stats.chi2.isf(alpha, N)
+    lam = optimize.brentq(lambda lam: stats.ncx2.sf(crit, N, lam) - power, 1e-6, 1e4)
+    return float(np.sqrt(lam / (skk * (N - 1))))
 
 
 def monte_carlo_power(N: int, K: int, d: float, alpha: float, known: bool, reps: int = 20000, seed: int = 1) -> float:
@@ -108,8 +100,10 @@ def main(argv=None):
     sigma = float(np.sqrt(np.median(var)))
     alpha = GapSettings().alpha / n_stats
     dof_m, skk_m = int(np.median(dof)), float(np.median(skk))
-    known = drift_bound(N, None, skk_m, alpha)
-    est = drift_bound(N, dof_m, skk_m, alpha)
+    if dof_m != N * (K - 2) or skk_m != K * (K * K - 1) / 12.0:
+        raise SystemExit(f"the fixed shape has trials missing (dof {dof_m}, S_kk {skk_m:g}): the sizes are for a balanced design")
+    known = known_sigma_size(N, skk_m, alpha)
+    est = f_test_size(N, K, True, alpha)
     print(f"independent world, {N} robots x {K} trials, nuisances {a.nuisance_scale:g}x nominal, {a.seeds} null datasets")
     print(f"  sigma_t (a robot's turn rate about its line, trial to trial): median {sigma:.5f} rad/s "
           f"(range {np.sqrt(var.min()):.5f} .. {np.sqrt(var.max()):.5f}); residual dof {dof_m}, S_kk {skk_m:g}")
@@ -117,12 +111,11 @@ def main(argv=None):
     print(f"  smallest drift flagged, sigma_t known:           {known:.3f} sigma_t = {known * sigma:.5f} rad/s per trial")
     print(f"  smallest drift flagged, sigma_t from the trials: {est:.3f} sigma_t = {est * sigma:.5f} rad/s per trial")
     print(f"  the earlier issue's drift: {EARLIER_DRIFT} rad/s per trial = {EARLIER_DRIFT / sigma:.3f} sigma_t")
-    level = optimize.brentq(lambda la: drift_bound(N, dof_m, skk_m, la) * sigma - EARLIER_DRIFT, 1e-8, 0.5)
+    level = optimize.brentq(lambda la: f_test_size(N, K, True, la) * sigma - EARLIER_DRIFT, 1e-8, 0.5)
     print(f"  level at which the F test flags {EARLIER_DRIFT} with {POWER:.0%} power: {level:.4f} "
           f"({level * n_stats:.3f} over the {n_stats} statistics)")
     for k in range(K, 9):
-        skk_k = k * (k * k - 1) / 12.0
-        if drift_bound(N, N * (k - 2), skk_k, alpha) * sigma <= EARLIER_DRIFT:
+        if f_test_size(N, k, True, alpha) * sigma <= EARLIER_DRIFT:
             print(f"  trials the F test needs to flag {EARLIER_DRIFT} with {POWER:.0%} power on {N} robots: {k}")
             break
     print("  check of the formulas (Monte Carlo, balanced, 20000 replicates; power at each bound): "

@@ -82,6 +82,16 @@ def realised_sizes(truth: dict) -> dict:
     return {"clock_drift": float(np.std(c, ddof=1) / np.mean(c))}
 
 
+def scale_to_size(write, effect: str, size: float, rounds: int = 3) -> float:
+    """The effect scale at which ``write(scale)`` (a dataset's writer, returning its truth) realises
+    ``size`` of ``effect`` over its robots: effects are linear in the scale but for clipping and
+    log-normal ones, so a few rounds of rescaling."""
+    scale = 1.0
+    for _ in range(rounds):
+        scale *= size / max(realised_sizes(write(scale))[effect], 1e-300)
+    return scale
+
+
 #: generator -> the file beside this one that writes its datasets (``generate``, as indep_world's)
 WORLDS = {"indep": "indep_world", "stress": "stress_world"}
 
@@ -168,10 +178,7 @@ def one(job: dict) -> dict:
         if mde is None or mde["size"] is None:
             return {**_ident(job), "skipped": f"no MDE for {effect}"}
         mde_source = mde["size"]
-        scale = 1.0
-        for _ in range(3):  # effects are linear in the scale but for clipping and log-normal ones
-            size = realised_sizes(_write(job, ds, scale))[effect]
-            scale *= mde_source / max(size, 1e-300)
+        scale = scale_to_size(lambda s: _write(job, ds, s), effect, mde_source)
     truth = _write(job, ds, scale)
     rep, secs = _gap(ds, root / "gap" / name, job["seed"])
     fitted = load_swarm(rep["model"])

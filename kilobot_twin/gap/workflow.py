@@ -1621,6 +1621,8 @@ def f_test_size(robots: int, trials: int, drift: bool, alpha: float, power: floa
         d1, d2, per = robots, robots * (trials - 2), trials * (trials**2 - 1) / 12.0
     else:
         d1, d2, per = robots - 1, robots * (trials - 1), float(trials)
+    if robots < 2 or d2 < 1:
+        raise ValueError(f"f_test_size: {robots} robots x {trials} trials leave the F test no degrees of freedom")
     crit = st.f.isf(alpha, d1, d2)
     hi = 1.0
     while st.ncf.sf(crit, d1, d2, hi) < power:

@@ -1,10 +1,10 @@
 """The detection size a report states for more robots or trials (``workflow.other_designs``).
 
 Its scale comes from ``f_test_size``, the spread the exact F test flags with 80 % power. Checked
-here against the tests written out in numpy and run on normal data drawn at that spread (a second
-implementation: one-way ANOVA of robots over trials, and each robot's slope over its trials
-against the scatter about its line), at the level they are given; the share flagged must be 0.8
-within 3 binomial sds of its Monte Carlo error. ``benchmarks/design_sizes.py`` checks the sizes
+against the tests written out in numpy and run on normal data drawn at that spread (a second
+implementation: one-way ANOVA of robots over trials here; each robot's slope over its trials
+against the scatter about its line, ``benchmarks/drift_bound.py``'s), at the level they are
+given; the share flagged must be 0.8 within 3 binomial sds of its Monte Carlo error. ``benchmarks/design_sizes.py`` checks the sizes
 on the independent world, through the workflow.
 """
 
@@ -13,6 +13,9 @@ import pytest
 from scipy import stats
 
 from kilobot_twin.gap import workflow as W
+from . import benchmark
+
+db = benchmark.load("drift_bound")
 
 REPS = 4000
 TOL = 3 * np.sqrt(0.8 * 0.2 / REPS)
@@ -34,26 +37,18 @@ def _between_flagged(rng, N, K, tau, alpha):
     return stats.f.sf(msb / msw, N - 1, N * (K - 1)) < alpha
 
 
-def _trend_flagged(rng, N, K, d, alpha):
-    k = np.arange(K) - (K - 1) / 2
-    slopes = _own_sd(rng, (REPS, 1, N), d)
-    x = rng.normal(3.0, 1.0, (REPS, 1, N)) + slopes * k[:, None] + rng.normal(size=(REPS, K, N))
-    m = x.mean(1, keepdims=True)
-    b = ((x - m) * k[:, None]).sum(1) / (k**2).sum()  # (R, N)
-    ms_trend = ((k**2).sum() * b**2).sum(-1) / N
-    ms_res = ((x - m - b[:, None] * k[:, None]) ** 2).sum((1, 2)) / (N * (K - 2))
-    return stats.f.sf(ms_trend / ms_res, N, N * (K - 2)) < alpha
-
-
 @pytest.mark.parametrize("N, K, drift, alpha", [(12, 4, False, 0.01 / 6), (6, 3, False, 0.05), (30, 8, False, 0.01 / 6),
                                                 (12, 4, True, 0.01 / 6), (12, 6, True, 0.01 / 6), (24, 3, True, 0.01)])
 def test_the_f_tests_size_is_flagged_with_80_percent_power_by_the_tests_written_out(N, K, drift, alpha):
+    def power(size):
+        if drift:  # drift_bound.py's trend test, written out
+            return db.monte_carlo_power(N, K, size, alpha, False, reps=REPS, seed=N * 100 + K)
+        return _between_flagged(np.random.default_rng(N * 100 + K), N, K, size, alpha).mean()
+
     tau = W.f_test_size(N, K, drift, alpha)
-    flagged = (_trend_flagged if drift else _between_flagged)(np.random.default_rng(N * 100 + K), N, K, tau, alpha)
-    assert abs(flagged.mean() - 0.8) < TOL, (flagged.mean(), tau)
+    assert abs(power(tau) - 0.8) < TOL, (power(tau), tau)
     # and a size 15 % smaller is flagged clearly less often (the check can tell sizes apart)
-    less = (_trend_flagged if drift else _between_flagged)(np.random.default_rng(N * 100 + K), N, K, 0.85 * tau, alpha)
-    assert less.mean() < 0.8 - TOL
+    assert power(0.85 * tau) < 0.8 - TOL
 
 
 def test_other_designs_scale_this_dataset_s_size_by_the_f_tests_at_the_family_s_level():

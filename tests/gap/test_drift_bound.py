@@ -7,26 +7,26 @@ exactly the stated sd), and the residual about robots' lines it reads (``workflo
 import numpy as np
 import pytest
 
-from kilobot_twin.gap.workflow import about_lines
+from kilobot_twin.gap.workflow import about_lines, f_test_size
 from . import benchmark
 
 db = benchmark.load("drift_bound")
 
 
-@pytest.mark.parametrize("known", [True, False])
-def test_the_bound_has_the_power_it_is_computed_for(known):
+def test_the_known_spread_bound_has_the_power_it_is_computed_for():
+    """(The bound with the spread estimated is ``workflow.f_test_size``: tests/gap/test_designs.py.)"""
     N, K, alpha, reps = 12, 4, 0.01 / 6, 20000
-    d = db.drift_bound(N, None if known else N * (K - 2), K * (K * K - 1) / 12.0, alpha)
-    power = db.monte_carlo_power(N, K, d, alpha, known, reps=reps, seed=7)
+    d = db.known_sigma_size(N, K * (K * K - 1) / 12.0, alpha)
+    power = db.monte_carlo_power(N, K, d, alpha, True, reps=reps, seed=7)
     # the Monte Carlo's binomial error at 80 %: sd sqrt(0.8 * 0.2 / reps) = 0.0028; 4 sd
     assert abs(power - 0.8) < 4 * np.sqrt(0.16 / reps)
 
 
 def test_an_estimated_spread_needs_a_larger_drift_than_a_known_one():
     alpha = 0.01 / 6
-    assert db.drift_bound(12, 24, 5.0, alpha) > db.drift_bound(12, None, 5.0, alpha)
+    assert f_test_size(12, 4, True, alpha) > db.known_sigma_size(12, 5.0, alpha)
     # more trials: more residual dof and a longer lever arm, so a smaller drift
-    assert db.drift_bound(12, 36, 17.5, alpha) < db.drift_bound(12, 24, 5.0, alpha)
+    assert f_test_size(12, 6, True, alpha) < f_test_size(12, 4, True, alpha)
 
 
 def test_residual_about_lines_by_hand():
